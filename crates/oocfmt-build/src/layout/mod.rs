@@ -1,0 +1,301 @@
+//! Lays a kd-tree out as an `.oocf` container (spec §6–§9): treelets packed into blocks level
+//! by level, triangle blocks, proxy blocks and the metadata.
+//!
+//! Everything is planned before anything is encoded, because references point forward (a LOD
+//! node names its children's block, a leaf its triangle block). Block order in the file:
+//! treelet blocks by level, then triangle blocks, then proxy blocks.
+
+mod plan;
+#[cfg(test)]
+pub(crate) mod tests;
+mod treelets;
+mod triangles;
+
+use std::path::Path;
+
+use oocfmt::metadata::{Build, Counts, Provenance, Scene, Schema, TreeletRef};
+use oocfmt::records::{Voxel, PROXY_LEN};
+use oocfmt::{BlockKind, EncodedBlock, Metadata, WriteOptions, WriteSummary, Writer};
+use rayon::prelude::*;
+
+use crate::kdtree::{KdError, KdTree};
+use crate::lod::{DEFAULT_VOXEL_THRESHOLD, LOD_SAMPLING};
+use crate::mesh::{Mesh, MeshError};
+use plan::{Role, TreePlan};
+use triangles::{TriangleCounts, VertexTable};
+
+/// Blocks compressed at once before they are appended: bounds the memory held by compressed
+/// blocks waiting for their turn.
+const ENCODE_BATCH: usize = 256;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct LayoutOptions {
+    pub write: WriteOptions,
+    /// Node levels per treelet (≥ 1); every `treelet_height`-th level holds the LOD nodes.
+    pub treelet_height: u8,
+    /// See [`crate::lod::DEFAULT_VOXEL_THRESHOLD`].
+    pub voxel_threshold: f32,
+    pub generator: String,
+    pub sources: Vec<String>,
+    /// Extra `(key, value)` build parameters, appended after the ones the builder records.
+    pub params: Vec<(String, String)>,
+}
+
+impl Default for LayoutOptions {
+    fn default() -> Self {
+        LayoutOptions {
+            write: WriteOptions::default(),
+            treelet_height: 3,
+            voxel_threshold: DEFAULT_VOXEL_THRESHOLD,
+            generator: concat!("oocfmt-build ", env!("CARGO_PKG_VERSION")).to_string(),
+            sources: Vec::new(),
+            params: Vec::new(),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum LayoutError {
+    #[error(transparent)]
+    Format(#[from] oocfmt::Error),
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    #[error(transparent)]
+    Tree(#[from] KdError),
+    #[error("treelet height {0}: expected at least 1")]
+    TreeletHeight(u8),
+    #[error("voxel threshold {0}: expected a finite number ≥ 0")]
+    VoxelThreshold(f32),
+    #[error("the child treelets of a LOD node need {bytes} bytes, more than a {block_size}-byte block: lower the treelet height or raise the block size")]
+    TreeletsTooLarge { bytes: usize, block_size: usize },
+    #[error("a treelet spans {bytes} node bytes, beyond the 32 KiB reach of child offsets: lower the treelet height")]
+    TreeletSpan { bytes: usize },
+    #[error("a leaf of {triangles} triangles needs {bytes} bytes, more than a {block_size}-byte triangle block: lower max_leaf_triangles or raise the block size")]
+    LeafTooLarge {
+        triangles: usize,
+        bytes: usize,
+        block_size: usize,
+    },
+    #[error("the scene is too large for f32 LOD radii")]
+    SceneTooLarge,
+    #[error("too many {0} for the format's fields")]
+    TooMany(&'static str),
+    #[error("internal layout error: {0}")]
+    Internal(&'static str),
+}
+
+/// One block before compression.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RawBlock {
+    pub kind: BlockKind,
+    pub level: u16,
+    pub item_count: u32,
+    pub raw: Vec<u8>,
+}
+
+/// Every block of a container, in file order, and its metadata.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Container {
+    pub blocks: Vec<RawBlock>,
+    pub metadata: Metadata,
+}
+
+/// Lays out `tree` over `mesh` and writes the container to `path` (atomically: nothing appears
+/// there unless the write completes). The output depends only on the inputs, never on the
+/// thread count.
+pub fn write_container(
+    path: &Path,
+    mesh: &Mesh,
+    tree: &KdTree,
+    opts: &LayoutOptions,
+) -> Result<(WriteSummary, Metadata), LayoutError> {
+    let container = build_blocks(mesh, tree, opts)?;
+    let codec = opts.write.codec;
+    let mut writer = Writer::create(path, opts.write)?;
+    for batch in container.blocks.chunks(ENCODE_BATCH) {
+        let encoded: Vec<EncodedBlock> = batch
+            .par_iter()
+            .map(|b| EncodedBlock::encode(codec, b.kind, b.level, b.item_count, &b.raw))
+            .collect::<Result<_, _>>()?;
+        for b in encoded {
+            writer.write_encoded(b)?;
+        }
+    }
+    let summary = writer.finish(&container.metadata)?;
+    Ok((summary, container.metadata))
+}
+
+/// Plans and encodes every block (uncompressed) and fills the metadata.
+pub fn build_blocks(
+    mesh: &Mesh,
+    tree: &KdTree,
+    opts: &LayoutOptions,
+) -> Result<Container, LayoutError> {
+    if opts.treelet_height == 0 {
+        return Err(LayoutError::TreeletHeight(opts.treelet_height));
+    }
+    if !(opts.voxel_threshold.is_finite() && opts.voxel_threshold >= 0.0) {
+        return Err(LayoutError::VoxelThreshold(opts.voxel_threshold));
+    }
+    // Checked here too, so a bad block size fails before the expensive planning.
+    let block_size = 1usize << opts.write.block_size_log2.min(20);
+    WriteOptions::default().with_block_size(1u64 << opts.write.block_size_log2.min(63))?;
+    tree.validate(mesh)?;
+    let schema = Schema {
+        vertex_normals: mesh.has_normals(),
+        vertex_colours: mesh.has_colours(),
+        triangle_materials: mesh.has_materials(),
+        six_sample_voxels: false,
+    };
+    let attrs = schema.triangle_attributes();
+
+    let tree_plan = plan::plan_tree(
+        mesh,
+        tree,
+        opts.treelet_height,
+        opts.voxel_threshold,
+        block_size,
+    )?;
+    let vertices = VertexTable::new(mesh);
+    let tri_plan = triangles::plan_triangles(mesh, tree, &vertices, attrs, block_size)?;
+
+    let treelet_blocks =
+        u32::try_from(tree_plan.blocks.len()).map_err(|_| LayoutError::TooMany("blocks"))?;
+    let treelet_raw: Vec<RawBlock> = tree_plan
+        .blocks
+        .par_iter()
+        .map(|b| {
+            let raw =
+                treelets::encode_treelets(b, tree, &tree_plan, &tri_plan.leaves, treelet_blocks)?;
+            let item_count =
+                u32::try_from(b.treelets.len()).map_err(|_| LayoutError::TooMany("treelets"))?;
+            Ok(RawBlock {
+                kind: BlockKind::Treelet,
+                level: b.level,
+                item_count,
+                raw,
+            })
+        })
+        .collect::<Result<_, LayoutError>>()?;
+    let triangle_raw: Vec<(RawBlock, TriangleCounts)> = tri_plan
+        .blocks
+        .par_iter()
+        .map(|b| {
+            let (raw, counts) = triangles::encode_triangles(b, mesh, &vertices, attrs)?;
+            let item_count =
+                u32::try_from(counts.triangles).map_err(|_| LayoutError::TooMany("triangles"))?;
+            Ok((
+                RawBlock {
+                    kind: BlockKind::Triangle,
+                    level: 0,
+                    item_count,
+                    raw,
+                },
+                counts,
+            ))
+        })
+        .collect::<Result<_, LayoutError>>()?;
+    let proxy_raw = proxy_blocks(&tree_plan, block_size)?;
+
+    let metadata = metadata(mesh, tree, opts, &tree_plan, &triangle_raw, schema)?;
+    let mut blocks = treelet_raw;
+    blocks.extend(triangle_raw.into_iter().map(|(b, _)| b));
+    blocks.extend(proxy_raw);
+    u32::try_from(blocks.len()).map_err(|_| LayoutError::TooMany("blocks"))?;
+    Ok(Container { blocks, metadata })
+}
+
+/// Proxy records in proxy-id order (the order LOD nodes appear in the file), as many per block
+/// as fit.
+fn proxy_blocks(plan: &TreePlan, block_size: usize) -> Result<Vec<RawBlock>, LayoutError> {
+    let per_block = (block_size / PROXY_LEN).max(1);
+    plan.lod_order
+        .chunks(per_block)
+        .map(|chunk| {
+            let mut raw = Vec::with_capacity(chunk.len() * PROXY_LEN);
+            for &n in chunk {
+                let data = plan
+                    .lod_data(n)
+                    .ok_or(LayoutError::Internal("a LOD node has no LOD data"))?;
+                data.proxy(plan.info(n).block).encode_into(&mut raw);
+            }
+            let item_count =
+                u32::try_from(chunk.len()).map_err(|_| LayoutError::TooMany("proxies"))?;
+            Ok(RawBlock {
+                kind: BlockKind::Proxy,
+                level: 0,
+                item_count,
+                raw,
+            })
+        })
+        .collect()
+}
+
+fn metadata(
+    mesh: &Mesh,
+    tree: &KdTree,
+    opts: &LayoutOptions,
+    plan: &TreePlan,
+    triangle_blocks: &[(RawBlock, TriangleCounts)],
+    mut schema: Schema,
+) -> Result<Metadata, LayoutError> {
+    let mut counts = Counts {
+        treelets: plan.treelets.len() as u64,
+        proxies: plan.lod_order.len() as u64,
+        depth: tree.depth(),
+        lod_levels: plan.lod_levels,
+        ..Counts::default()
+    };
+    for &n in plan.treelets.iter().flat_map(|t| &t.nodes) {
+        match plan.info(n).role {
+            Role::Basic => counts.basic_nodes += 1,
+            Role::Lod => counts.lod_nodes += 1,
+            Role::Leaf => counts.leaves += 1,
+        }
+    }
+    for d in &plan.lod {
+        match d.voxel {
+            Voxel::Single(_) => counts.voxels_single += 1,
+            Voxel::Six(_) => counts.voxels_six += 1,
+        }
+    }
+    for (_, c) in triangle_blocks {
+        counts.triangles += c.primaries;
+        counts.triangle_records += c.triangles;
+        counts.vertices += c.vertices;
+    }
+    schema.six_sample_voxels = counts.voxels_six > 0;
+    let bounds = tree.bounds();
+    let scene = if tree.root().is_some() {
+        Scene {
+            bounds_min: bounds.min,
+            bounds_max: bounds.max,
+            origin: [0.0; 3],
+        }
+    } else {
+        Scene::default()
+    };
+    let mut params: Vec<(String, String)> = tree.params().to_vec();
+    params.push(("lod_sampling".into(), LOD_SAMPLING.into()));
+    params.push(("voxel_threshold".into(), opts.voxel_threshold.to_string()));
+    params.extend(opts.params.iter().cloned());
+    Ok(Metadata {
+        scene,
+        root: tree.root().map(|_| TreeletRef {
+            block: 0,
+            treelet: 0,
+        }),
+        counts,
+        schema,
+        materials: mesh.material_table.clone(),
+        build: Build {
+            treelet_height: opts.treelet_height,
+            max_leaf_triangles: tree.max_leaf_triangles(),
+            params,
+        },
+        provenance: Provenance {
+            generator: opts.generator.clone(),
+            sources: opts.sources.clone(),
+        },
+    })
+}

@@ -1,0 +1,344 @@
+//! The treelet plan: which nodes are basic, LOD or leaf, how the tree is cut into treelets, and
+//! which treelet block (and index in it) every treelet gets — all before anything is encoded,
+//! because LOD nodes must name their children's block.
+
+use oocfmt::records::{TreeletBlockWriter, NODE_BASIC_LEN, NODE_LEAF_LEN, NODE_LOD_LEN, NO_PROXY};
+
+use super::LayoutError;
+use crate::kdtree::{KdNode, KdTree, NodeId};
+use crate::lod::LodData;
+use crate::mesh::{Bounds, Mesh};
+
+/// The largest node area a treelet may have: child offsets are 12-bit counts of 8-byte units.
+const MAX_TREELET_NODE_BYTES: usize = 8 * 4096;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub(crate) enum Role {
+    #[default]
+    Basic,
+    Lod,
+    Leaf,
+}
+
+/// What the layout knows about one tree node.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct NodeInfo {
+    pub role: Role,
+    pub cell: Bounds,
+    /// Bytes of this node and the part of its subtree inside its treelet (preorder span).
+    pub span_bytes: usize,
+    /// LOD nodes: index into [`TreePlan::lod`].
+    pub lod: usize,
+    /// LOD nodes: proxy id, numbered in file order.
+    pub proxy: u32,
+    /// LOD nodes: the block of the child treelets and the index of the first one in it.
+    pub child_block: u32,
+    pub child_treelet: u32,
+    /// The treelet block holding this node.
+    pub block: u32,
+}
+
+impl Default for NodeInfo {
+    fn default() -> Self {
+        NodeInfo {
+            role: Role::Basic,
+            cell: Bounds::EMPTY,
+            span_bytes: 0,
+            lod: 0,
+            proxy: NO_PROXY,
+            child_block: 0,
+            child_treelet: 0,
+            block: 0,
+        }
+    }
+}
+
+/// A treelet: its nodes in preorder, and the bytes it adds to a block.
+#[derive(Clone, Debug)]
+pub(crate) struct Treelet {
+    pub root: NodeId,
+    pub node_bytes: usize,
+    pub voxel_bytes: usize,
+    pub nodes: Vec<NodeId>,
+}
+
+#[derive(Clone, Debug, Default)]
+pub(crate) struct PlannedBlock {
+    pub level: u16,
+    pub treelets: Vec<usize>,
+    node_bytes: usize,
+    voxel_bytes: usize,
+}
+
+impl PlannedBlock {
+    fn raw_len_with(
+        &self,
+        extra_treelets: usize,
+        extra_nodes: usize,
+        extra_voxels: usize,
+    ) -> usize {
+        TreeletBlockWriter::raw_len_for(
+            self.treelets.len() + extra_treelets,
+            self.node_bytes + extra_nodes,
+            self.voxel_bytes + extra_voxels,
+        )
+    }
+}
+
+#[derive(Clone, Debug, Default)]
+pub(crate) struct TreePlan {
+    pub info: Vec<NodeInfo>,
+    pub treelets: Vec<Treelet>,
+    pub blocks: Vec<PlannedBlock>,
+    /// LOD data in arena order of the LOD nodes (indexed by [`NodeInfo::lod`]).
+    pub lod: Vec<LodData>,
+    /// LOD nodes in file order: position = proxy id.
+    pub lod_order: Vec<NodeId>,
+    pub lod_levels: u32,
+}
+
+impl TreePlan {
+    pub fn info(&self, id: NodeId) -> NodeInfo {
+        self.info.get(id.index()).copied().unwrap_or_default()
+    }
+
+    pub fn lod_data(&self, id: NodeId) -> Option<&LodData> {
+        self.lod.get(self.info(id).lod)
+    }
+}
+
+/// A LOD node's present children, cut into treelets that must share a block, left first.
+struct Unit {
+    parent: Option<NodeId>,
+    treelets: Vec<usize>,
+}
+
+/// Plans the treelet blocks of `tree`. `voxel_threshold` feeds the LOD estimate, whose voxel
+/// sizes (one or six samples) the block packing needs.
+pub(crate) fn plan_tree(
+    mesh: &Mesh,
+    tree: &KdTree,
+    treelet_height: u8,
+    voxel_threshold: f32,
+    block_size: usize,
+) -> Result<TreePlan, LayoutError> {
+    let mut plan = TreePlan {
+        info: vec![NodeInfo::default(); tree.nodes().len()],
+        ..TreePlan::default()
+    };
+    let Some(root) = tree.root() else {
+        return Ok(plan);
+    };
+    let lod_nodes = classify(tree, root, treelet_height, &mut plan.info);
+    plan.lod = crate::lod::compute(mesh, tree, &lod_nodes, voxel_threshold);
+
+    let mut units = vec![Unit {
+        parent: None,
+        treelets: vec![make_treelet(tree, &mut plan, root)],
+    }];
+    let mut level: u16 = 0;
+    while !units.is_empty() {
+        let first_block = plan.blocks.len();
+        pack_level(&mut plan, &units, level, block_size)?;
+        let mut next = Vec::new();
+        for b in first_block..plan.blocks.len() {
+            let treelets = plan
+                .blocks
+                .get(b)
+                .map(|blk| blk.treelets.clone())
+                .unwrap_or_default();
+            for t in treelets {
+                let nodes = plan
+                    .treelets
+                    .get(t)
+                    .map(|tl| tl.nodes.clone())
+                    .unwrap_or_default();
+                let lods: Vec<NodeId> = nodes
+                    .into_iter()
+                    .filter(|&n| plan.info(n).role == Role::Lod)
+                    .collect();
+                for n in lods {
+                    if let Some(i) = plan.info.get_mut(n.index()) {
+                        i.proxy = u32::try_from(plan.lod_order.len())
+                            .map_err(|_| LayoutError::TooMany("LOD nodes"))?;
+                    }
+                    plan.lod_order.push(n);
+                    let kids: Vec<usize> = tree
+                        .children(n)
+                        .into_iter()
+                        .flatten()
+                        .map(|c| make_treelet(tree, &mut plan, c))
+                        .collect();
+                    next.push(Unit {
+                        parent: Some(n),
+                        treelets: kids,
+                    });
+                }
+            }
+        }
+        units = next;
+        level = level
+            .checked_add(1)
+            .ok_or(LayoutError::TooMany("LOD levels"))?;
+    }
+    plan.lod_levels = u32::from(level);
+    Ok(plan)
+}
+
+/// Records every node's cell and role; returns the LOD nodes in arena order. A node at depth
+/// `d` (root 0) is a LOD node when it is inner and `d % H == H - 1`.
+fn classify(tree: &KdTree, root: NodeId, height: u8, info: &mut [NodeInfo]) -> Vec<NodeId> {
+    let h = u32::from(height.max(1));
+    let mut stack = vec![(root, 0u32, tree.bounds())];
+    while let Some((id, depth, cell)) = stack.pop() {
+        let role = match tree.node(id) {
+            Some(&KdNode::Inner {
+                axis,
+                split,
+                children,
+            }) => {
+                let (lo, hi) = cell.split(usize::from(axis), split);
+                for (c, cc) in children.into_iter().zip([lo, hi]) {
+                    if let Some(c) = c {
+                        stack.push((c, depth + 1, cc));
+                    }
+                }
+                if depth % h == h - 1 {
+                    Role::Lod
+                } else {
+                    Role::Basic
+                }
+            }
+            _ => Role::Leaf,
+        };
+        if let Some(i) = info.get_mut(id.index()) {
+            i.role = role;
+            i.cell = cell;
+        }
+    }
+    let mut lods = Vec::new();
+    for (k, i) in info.iter_mut().enumerate() {
+        if i.role == Role::Lod {
+            i.lod = lods.len();
+            lods.push(NodeId(k as u32));
+        }
+    }
+    lods
+}
+
+/// Collects the treelet rooted at `root` (nodes down to and including LOD nodes and leaves),
+/// computes its byte spans, and returns its index.
+fn make_treelet(tree: &KdTree, plan: &mut TreePlan, root: NodeId) -> usize {
+    let mut nodes = Vec::new();
+    let mut stack = vec![root];
+    while let Some(id) = stack.pop() {
+        nodes.push(id);
+        if plan.info(id).role == Role::Basic {
+            let [l, r] = tree.children(id);
+            stack.extend(r);
+            stack.extend(l);
+        }
+    }
+    let mut voxel_bytes = 0;
+    // Reverse preorder visits children before their parent.
+    for &id in nodes.iter().rev() {
+        let i = plan.info(id);
+        let span = match i.role {
+            Role::Leaf => NODE_LEAF_LEN,
+            Role::Lod => {
+                voxel_bytes += plan.lod_data(id).map_or(0, |d| d.voxel.byte_len());
+                NODE_LOD_LEN
+            }
+            Role::Basic => {
+                NODE_BASIC_LEN
+                    + tree
+                        .children(id)
+                        .into_iter()
+                        .flatten()
+                        .map(|c| plan.info(c).span_bytes)
+                        .sum::<usize>()
+            }
+        };
+        if let Some(slot) = plan.info.get_mut(id.index()) {
+            slot.span_bytes = span;
+        }
+    }
+    let node_bytes = plan.info(root).span_bytes;
+    plan.treelets.push(Treelet {
+        root,
+        node_bytes,
+        voxel_bytes,
+        nodes,
+    });
+    plan.treelets.len() - 1
+}
+
+/// Packs one level's units into new blocks, consecutively, and points every parent LOD node
+/// at its children's block and first treelet.
+fn pack_level(
+    plan: &mut TreePlan,
+    units: &[Unit],
+    level: u16,
+    block_size: usize,
+) -> Result<(), LayoutError> {
+    let mut current = PlannedBlock {
+        level,
+        ..PlannedBlock::default()
+    };
+    for unit in units {
+        let (mut nodes, mut voxels) = (0, 0);
+        for t in unit.treelets.iter().filter_map(|&t| plan.treelets.get(t)) {
+            if t.node_bytes > MAX_TREELET_NODE_BYTES {
+                return Err(LayoutError::TreeletSpan {
+                    bytes: t.node_bytes,
+                });
+            }
+            nodes += t.node_bytes;
+            voxels += t.voxel_bytes;
+        }
+        let n = unit.treelets.len();
+        if current.raw_len_with(n, nodes, voxels) > block_size && !current.treelets.is_empty() {
+            plan.blocks.push(std::mem::replace(
+                &mut current,
+                PlannedBlock {
+                    level,
+                    ..PlannedBlock::default()
+                },
+            ));
+        }
+        let needed = current.raw_len_with(n, nodes, voxels);
+        if needed > block_size {
+            return Err(LayoutError::TreeletsTooLarge {
+                bytes: needed,
+                block_size,
+            });
+        }
+        let block =
+            u32::try_from(plan.blocks.len()).map_err(|_| LayoutError::TooMany("treelet blocks"))?;
+        let first = u32::try_from(current.treelets.len())
+            .map_err(|_| LayoutError::TooMany("treelets in a block"))?;
+        if let Some(p) = unit.parent.and_then(|p| plan.info.get_mut(p.index())) {
+            p.child_block = block;
+            p.child_treelet = first;
+        }
+        for &t in &unit.treelets {
+            let members = plan
+                .treelets
+                .get(t)
+                .map(|tl| tl.nodes.clone())
+                .unwrap_or_default();
+            for m in members {
+                if let Some(i) = plan.info.get_mut(m.index()) {
+                    i.block = block;
+                }
+            }
+            current.treelets.push(t);
+        }
+        current.node_bytes += nodes;
+        current.voxel_bytes += voxels;
+    }
+    if !current.treelets.is_empty() {
+        plan.blocks.push(current);
+    }
+    Ok(())
+}

@@ -1,0 +1,145 @@
+//! Encodes planned treelet blocks: each treelet's nodes in preorder, LOD voxels in the order
+//! their nodes are written.
+
+use oocfmt::records::{Node, TreeletBlockWriter};
+
+use super::plan::{PlannedBlock, Role, TreePlan};
+use super::triangles::LeafRef;
+use super::LayoutError;
+use crate::kdtree::{KdNode, KdTree, NodeId};
+
+/// Encodes one planned treelet block. `leaves` are the triangle references by node id, and
+/// `first_triangle_block` the block id of triangle block 0.
+pub(crate) fn encode_treelets(
+    block: &PlannedBlock,
+    tree: &KdTree,
+    plan: &TreePlan,
+    leaves: &[Option<LeafRef>],
+    first_triangle_block: u32,
+) -> Result<Vec<u8>, LayoutError> {
+    let mut enc = Encoder {
+        w: TreeletBlockWriter::new(),
+        tree,
+        plan,
+        leaves,
+        first_triangle_block,
+    };
+    for &t in &block.treelets {
+        let root = plan
+            .treelets
+            .get(t)
+            .map(|tl| tl.root)
+            .ok_or(LayoutError::Internal("a planned treelet is missing"))?;
+        enc.w.begin_treelet();
+        enc.node(root)?;
+    }
+    Ok(enc.w.finish())
+}
+
+struct Encoder<'a> {
+    w: TreeletBlockWriter,
+    tree: &'a KdTree,
+    plan: &'a TreePlan,
+    leaves: &'a [Option<LeafRef>],
+    first_triangle_block: u32,
+}
+
+impl Encoder<'_> {
+    /// Writes `id` and, for a basic node, its subtree; recursion is bounded by the treelet
+    /// height.
+    fn node(&mut self, id: NodeId) -> Result<(), LayoutError> {
+        let info = self.plan.info(id);
+        let pos = self.w.next_node_pos();
+        match (info.role, self.tree.node(id)) {
+            (Role::Leaf, Some(KdNode::Leaf { .. })) => {
+                let leaf = self
+                    .leaves
+                    .get(id.index())
+                    .copied()
+                    .flatten()
+                    .ok_or(LayoutError::Internal("a leaf has no triangle block"))?;
+                let block = self
+                    .first_triangle_block
+                    .checked_add(leaf.block)
+                    .ok_or(LayoutError::TooMany("blocks"))?;
+                self.w.push_node(&Node::Leaf {
+                    count: leaf.count,
+                    first: leaf.first,
+                    block,
+                });
+            }
+            (
+                Role::Lod,
+                Some(&KdNode::Inner {
+                    axis,
+                    split,
+                    children: [l, r],
+                }),
+            ) => {
+                let data = self
+                    .plan
+                    .lod_data(id)
+                    .ok_or(LayoutError::Internal("a LOD node has no LOD data"))?;
+                let radius = info
+                    .cell
+                    .half_diagonal_up()
+                    .ok_or(LayoutError::SceneTooLarge)?;
+                let voxel_offset = self.w.push_voxel(&data.voxel);
+                self.w.push_node(&Node::Lod {
+                    axis,
+                    split,
+                    radius,
+                    left_present: l.is_some(),
+                    right_present: r.is_some(),
+                    child_treelet: info.child_treelet,
+                    child_block: info.child_block,
+                    voxel_offset,
+                    proxy: info.proxy,
+                });
+            }
+            (
+                Role::Basic,
+                Some(&KdNode::Inner {
+                    axis,
+                    split,
+                    children: [l, r],
+                }),
+            ) => {
+                let left_at = pos + oocfmt::records::NODE_BASIC_LEN;
+                let right_at = left_at + l.map_or(0, |l| self.plan.info(l).span_bytes);
+                let units = |present: bool, at: usize| -> Result<u16, LayoutError> {
+                    if present {
+                        TreeletBlockWriter::units_between(pos, at)
+                            .map_err(|_| LayoutError::TreeletSpan { bytes: at - pos })
+                    } else {
+                        Ok(0)
+                    }
+                };
+                let left = units(l.is_some(), left_at)?;
+                let right = units(r.is_some(), right_at)?;
+                self.w.push_node(&Node::Basic {
+                    axis,
+                    split,
+                    left,
+                    right,
+                });
+                for (child, at) in [(l, left_at), (r, right_at)] {
+                    if let Some(c) = child {
+                        if self.w.next_node_pos() != at {
+                            return Err(LayoutError::Internal(
+                                "a child landed away from its planned offset",
+                            ));
+                        }
+                        self.node(c)?;
+                    }
+                }
+            }
+            _ => {
+                return Err(LayoutError::Internal(
+                    "a node's role does not match its kind",
+                ))
+            }
+        }
+        Ok(())
+    }
+}

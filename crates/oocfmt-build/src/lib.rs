@@ -1,0 +1,13 @@
+//! `oocfmt-build`: turns a triangle mesh into an `.oocf` container.
+//!
+//! The stages are independent so each can be replaced on its own: [`mesh`] holds the input,
+//! [`kdtree`] builds the tree, [`lod`] estimates voxels and proxies, and [`layout`] cuts the
+//! tree into treelets, packs blocks and writes the file. [`gen`] makes demo scenes and
+//! [`vectors`] the spec's test vectors.
+
+pub mod gen;
+pub mod kdtree;
+pub mod layout;
+pub mod lod;
+pub mod mesh;
+pub mod vectors;

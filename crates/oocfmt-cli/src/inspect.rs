@@ -1,0 +1,138 @@
+//! `oocfmt inspect`: a summary for people, or JSON for programs; one block decoded with `--block`.
+
+use std::path::PathBuf;
+
+use oocfmt::summary::{summarize, Summary};
+use oocfmt::{ReadOptions, Reader};
+
+use crate::error::{to_json, CliError, CliResult};
+use crate::{hexdump, inspect_block};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The container to inspect
+    pub file: PathBuf,
+    /// Print JSON instead of tables
+    #[arg(long)]
+    pub json: bool,
+    /// Decode and print one block
+    #[arg(long, value_name = "ID")]
+    pub block: Option<u32>,
+    /// Print an annotated hex dump of the whole file (small files only)
+    #[arg(long, conflicts_with = "block")]
+    pub hexdump: bool,
+}
+
+pub fn run(a: &Args) -> CliResult {
+    if a.hexdump {
+        print!("{}", hexdump::annotate(&a.file)?);
+        return Ok(0);
+    }
+    let reader = Reader::open(&a.file, ReadOptions::default())?;
+    if let Some(id) = a.block {
+        let dump = inspect_block::dump(&reader, id)?;
+        if a.json {
+            println!("{}", to_json(&dump)?);
+        } else {
+            print!("{}", inspect_block::render(&dump));
+        }
+        return Ok(0);
+    }
+    let s = summarize(&reader)?;
+    if a.json {
+        println!("{}", to_json(&s)?);
+    } else {
+        print!("{}", render(&s));
+    }
+    Ok(0)
+}
+
+fn mib(b: u64) -> String {
+    if b >= 1 << 20 {
+        format!("{:.1} MiB", b as f64 / f64::from(1 << 20))
+    } else if b >= 1 << 10 {
+        format!("{:.1} KiB", b as f64 / 1024.0)
+    } else {
+        format!("{b} B")
+    }
+}
+
+/// The human-readable summary.
+pub fn render(s: &Summary) -> String {
+    use std::fmt::Write;
+    let mut o = String::new();
+    let feats = if s.feature_names.is_empty() { "none".to_string() } else { s.feature_names.join(", ") };
+    let _ = writeln!(o, "file       {} ({}, {} blocks of {})", s.file, mib(s.file_length), s.block_count, mib(u64::from(s.block_size)));
+    let _ = writeln!(o, "format     {} features {feats} (compatible {:#x}, incompatible {:#x})", s.version, s.compatible_features, s.incompatible_features);
+    let _ = writeln!(o, "identity   {}", s.identity);
+    let _ = writeln!(o);
+    let _ = writeln!(
+        o,
+        "{:>9} {:>7} {:>8} {:>8} {:>7} {:>8} {:>7} {:>7} {:>10} {:>7} {:>10} {:>10} {:>6}  codecs",
+        "level", "blocks", "treelets", "basic", "lod", "leaves", "vox1", "vox6", "triangles", "proxies", "raw", "stored", "ratio"
+    );
+    for r in &s.levels {
+        let codecs: Vec<String> = r.codecs.iter().map(|(k, v)| format!("{k}:{v}")).collect();
+        let _ = writeln!(
+            o,
+            "{:>9} {:>7} {:>8} {:>8} {:>7} {:>8} {:>7} {:>7} {:>10} {:>7} {:>10} {:>10} {:>6.2}  {}",
+            r.level,
+            r.blocks,
+            r.treelets,
+            r.basic_nodes,
+            r.lod_nodes,
+            r.leaves,
+            r.voxels_single,
+            r.voxels_six,
+            r.triangles,
+            r.proxies,
+            mib(r.raw_bytes),
+            mib(r.stored_bytes),
+            r.ratio,
+            codecs.join(" ")
+        );
+    }
+    let _ = writeln!(o);
+    let res = &s.residency;
+    let _ = writeln!(
+        o,
+        "resident   {} at open (header, directory, metadata, trailer, proxies; {} of proxies in memory)",
+        mib(res.resident_stored_bytes),
+        mib(res.proxy_raw_bytes)
+    );
+    let _ = writeln!(o, "streamed   {} on demand (treelet and triangle blocks)", mib(res.streamed_bytes));
+    let t = &s.tree;
+    let _ = writeln!(
+        o,
+        "tree       depth {}, {} LOD levels, {} treelets, {} basic + {} LOD nodes, {} leaves, {:.2} triangles per leaf",
+        t.depth, t.lod_levels, t.treelets, t.basic_nodes, t.lod_nodes, t.leaves, t.avg_triangles_per_leaf
+    );
+    let _ = writeln!(o, "triangles  {} ({:.1} bytes per triangle in the file)", t.triangles, t.bytes_per_triangle);
+    let m = &s.metadata;
+    let _ = writeln!(o, "bounds     {:?} .. {:?}, origin {:?}", m.scene.bounds_min, m.scene.bounds_max, m.scene.origin);
+    let sc = &m.schema;
+    let _ = writeln!(
+        o,
+        "schema     vertex normals {}, vertex colours {}, triangle materials {}, 6-sample voxels {}",
+        sc.vertex_normals, sc.vertex_colours, sc.triangle_materials, sc.six_sample_voxels
+    );
+    let _ = writeln!(o, "materials  {}", m.materials.len());
+    for mat in m.materials.iter().take(16) {
+        let _ = writeln!(o, "           {:<24} diffuse {:?}", mat.name, mat.diffuse);
+    }
+    let params: Vec<String> = m.build.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
+    let _ = writeln!(
+        o,
+        "build      treelet height {}, max {} triangles per leaf{}{}",
+        m.build.treelet_height,
+        m.build.max_leaf_triangles,
+        if params.is_empty() { "" } else { ", " },
+        params.join(", ")
+    );
+    let _ = writeln!(o, "provenance {} from {}", m.provenance.generator, if m.provenance.sources.is_empty() { "-".to_string() } else { m.provenance.sources.join(", ") });
+    o
+}
+
+pub fn invalid_block(id: u32, count: usize) -> CliError {
+    CliError::Usage(format!("--block {id}: the file has {count} blocks"))
+}

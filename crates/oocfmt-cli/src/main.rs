@@ -1,0 +1,57 @@
+//! `oocfmt`: inspect, verify and build `.oocf` containers.
+//!
+//! Exit status: 0 success (for `verify`: the file is valid); 1 the file is invalid or a format
+//! error stopped the command; 2 the command could not run (bad usage, I/O error).
+
+mod demo;
+mod error;
+mod hexdump;
+mod inspect;
+mod inspect_block;
+mod progress;
+mod verify;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "oocfmt", version, about = "Out-of-core ray tracing containers (.oocf): inspect, verify, build")]
+#[command(after_help = "Exit status: 0 success (verify: valid), 1 invalid file, 2 could not run (usage, I/O).")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Summarise a container: header, per-LOD-level table, residency, tree statistics, metadata
+    Inspect(inspect::Args),
+    /// Check a container and report every problem with a stable issue code
+    Verify(verify::Args),
+    /// Build a container from the built-in demo scene, then inspect and verify it
+    Demo(demo::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    let result = match cli.command {
+        Command::Inspect(a) => inspect::run(&a),
+        Command::Verify(a) => verify::run(&a),
+        Command::Demo(a) => demo::run(&a),
+    };
+    match result {
+        Ok(code) => ExitCode::from(code),
+        Err(e) => {
+            eprintln!("oocfmt: {e}");
+            ExitCode::from(e.exit_code())
+        }
+    }
+}

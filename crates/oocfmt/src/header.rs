@@ -1,0 +1,245 @@
+//! The 64-byte file header (spec §3).
+
+use crate::bytes::{u16_at, u32_at, u64_at, PutLe};
+use crate::checksum::crc32c;
+use crate::error::{bad, Code, Error, ErrorKind, Result};
+
+pub const MAGIC: [u8; 8] = [0x89, b'O', b'C', b'F', b'\r', b'\n', 0x1a, b'\n'];
+/// The major version this crate reads and writes.
+pub const VERSION_MAJOR: u16 = 1;
+/// The minor version this crate writes; it reads every minor of [`VERSION_MAJOR`].
+pub const VERSION_MINOR: u16 = 0;
+pub const MIN_BLOCK_SIZE_LOG2: u8 = 12;
+pub const MAX_BLOCK_SIZE_LOG2: u8 = 20;
+pub const DEFAULT_BLOCK_SIZE_LOG2: u8 = 16;
+
+pub const COMPAT_PROXIES: u64 = 1 << 0;
+pub const COMPAT_LOD_VOXELS: u64 = 1 << 1;
+/// Compatible feature bits defined by this version.
+pub const KNOWN_COMPAT: u64 = COMPAT_PROXIES | COMPAT_LOD_VOXELS;
+/// Incompatible feature bits defined by this version: none.
+pub const KNOWN_INCOMPAT: u64 = 0;
+
+// Field offsets, each built from the one before so prose and code cannot drift apart.
+pub const OFF_MAGIC: usize = 0;
+pub const OFF_MAJOR: usize = OFF_MAGIC + 8;
+pub const OFF_MINOR: usize = OFF_MAJOR + 2;
+pub const OFF_BLOCK_SIZE_LOG2: usize = OFF_MINOR + 2;
+pub const OFF_RESERVED_A: usize = OFF_BLOCK_SIZE_LOG2 + 1;
+pub const OFF_INCOMPAT: usize = OFF_RESERVED_A + 3;
+pub const OFF_COMPAT: usize = OFF_INCOMPAT + 8;
+pub const OFF_DIRECTORY_OFFSET: usize = OFF_COMPAT + 8;
+pub const OFF_BLOCK_COUNT: usize = OFF_DIRECTORY_OFFSET + 8;
+pub const OFF_METADATA_LENGTH: usize = OFF_BLOCK_COUNT + 4;
+pub const OFF_METADATA_OFFSET: usize = OFF_METADATA_LENGTH + 4;
+pub const OFF_RESERVED_B: usize = OFF_METADATA_OFFSET + 8;
+pub const OFF_HEADER_CRC: usize = OFF_RESERVED_B + 4;
+pub const HEADER_LEN: usize = OFF_HEADER_CRC + 4;
+
+/// Where the sections after the blocks lie; the header and the trailer both carry it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct SectionTable {
+    pub directory_offset: u64,
+    pub block_count: u32,
+    pub metadata_offset: u64,
+    pub metadata_length: u32,
+}
+
+impl SectionTable {
+    /// Offset of the trailer that must follow the metadata.
+    pub fn trailer_offset(&self) -> Option<u64> {
+        self.metadata_offset
+            .checked_add(u64::from(self.metadata_length))
+    }
+
+    /// Checks that directory, metadata and trailer tile a file of `file_len` bytes (spec §2).
+    pub fn check_tiling(&self, file_len: u64) -> Result<()> {
+        let dir_len = u64::from(self.block_count) * crate::directory::ENTRY_LEN as u64;
+        let dir_end = self.directory_offset.checked_add(dir_len);
+        let end = self
+            .trailer_offset()
+            .and_then(|t| t.checked_add(crate::trailer::TRAILER_LEN as u64));
+        if self.directory_offset < HEADER_LEN as u64 {
+            return bad(Code::Layout, format!("directory offset {} lies inside the header", self.directory_offset));
+        }
+        if dir_end != Some(self.metadata_offset) {
+            return bad(
+                Code::Layout,
+                format!(
+                    "metadata offset {} is not directory offset {} + 32 × {} blocks",
+                    self.metadata_offset, self.directory_offset, self.block_count
+                ),
+            );
+        }
+        if end != Some(file_len) {
+            return bad(
+                Code::Layout,
+                format!(
+                    "metadata at {} + {} bytes + 48-byte trailer does not end at the file length {file_len}",
+                    self.metadata_offset, self.metadata_length
+                ),
+            );
+        }
+        Ok(())
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Header {
+    pub major: u16,
+    pub minor: u16,
+    pub block_size_log2: u8,
+    pub incompatible_features: u64,
+    pub compatible_features: u64,
+    pub sections: SectionTable,
+}
+
+impl Header {
+    pub fn new(block_size_log2: u8) -> Self {
+        Header {
+            major: VERSION_MAJOR,
+            minor: VERSION_MINOR,
+            block_size_log2,
+            incompatible_features: 0,
+            compatible_features: 0,
+            sections: SectionTable::default(),
+        }
+    }
+
+    pub fn block_size(&self) -> u32 {
+        1u32 << self.block_size_log2.min(31)
+    }
+
+    pub fn encode(&self) -> [u8; HEADER_LEN] {
+        let mut v = Vec::with_capacity(HEADER_LEN);
+        v.extend_from_slice(&MAGIC);
+        v.put_u16(self.major);
+        v.put_u16(self.minor);
+        v.push(self.block_size_log2);
+        v.extend_from_slice(&[0; 3]);
+        v.put_u64(self.incompatible_features);
+        v.put_u64(self.compatible_features);
+        v.put_u64(self.sections.directory_offset);
+        v.put_u32(self.sections.block_count);
+        v.put_u32(self.sections.metadata_length);
+        v.put_u64(self.sections.metadata_offset);
+        v.put_u32(0);
+        let crc = crc32c(&v);
+        v.put_u32(crc);
+        let mut out = [0u8; HEADER_LEN];
+        out.copy_from_slice(&v);
+        out
+    }
+
+    /// Decodes and validates a header. Checks run in the order of spec §11: magic, major
+    /// version, checksum, then the fields.
+    pub fn decode(b: &[u8]) -> Result<Header> {
+        let h = Self::decode_unchecked(b)?;
+        let stored = u32_at(b, OFF_HEADER_CRC, Code::HeaderChecksum)?;
+        let computed = crc32c(&b[..OFF_HEADER_CRC]);
+        if stored != computed {
+            return Err(Error::new(ErrorKind::Checksum {
+                code: Code::HeaderChecksum,
+                what: "header",
+                stored,
+                computed,
+            })
+            .at(OFF_HEADER_CRC as u64));
+        }
+        if b[OFF_RESERVED_A..OFF_INCOMPAT].iter().any(|&x| x != 0)
+            || u32_at(b, OFF_RESERVED_B, Code::HeaderReserved)? != 0
+        {
+            return Err(Error::malformed(Code::HeaderReserved, "reserved header bytes are not zero").at(OFF_RESERVED_A as u64));
+        }
+        if !(MIN_BLOCK_SIZE_LOG2..=MAX_BLOCK_SIZE_LOG2).contains(&h.block_size_log2) {
+            return Err(Error::malformed(
+                Code::HeaderBlockSize,
+                format!("block size 2^{} is outside 2^12 ..= 2^20", h.block_size_log2),
+            )
+            .at(OFF_BLOCK_SIZE_LOG2 as u64));
+        }
+        let unknown = h.incompatible_features & !KNOWN_INCOMPAT;
+        if unknown != 0 {
+            return Err(Error::new(ErrorKind::Unsupported {
+                code: Code::HeaderFeatureUnsupported,
+                detail: format!("incompatible feature bits {unknown:#x} are not known to this reader"),
+            })
+            .at(OFF_INCOMPAT as u64));
+        }
+        Ok(h)
+    }
+
+    /// Reads the fields after checking only the magic and the major version: for `verify`,
+    /// which goes on past a bad checksum to find more problems.
+    pub fn decode_unchecked(b: &[u8]) -> Result<Header> {
+        let b = b.get(..HEADER_LEN).ok_or_else(|| {
+            Error::malformed(Code::FileTooSmall, format!("{} bytes, shorter than the 64-byte header", b.len()))
+        })?;
+        check_magic(b)?;
+        let c = Code::HeaderMagic;
+        let major = u16_at(b, OFF_MAJOR, c)?;
+        let minor = u16_at(b, OFF_MINOR, c)?;
+        if major != VERSION_MAJOR {
+            return Err(Error::new(ErrorKind::Unsupported {
+                code: Code::HeaderVersionUnsupported,
+                detail: format!("format version {major}.{minor}; this reader implements {VERSION_MAJOR}.x"),
+            })
+            .at(OFF_MAJOR as u64));
+        }
+        Ok(Header {
+            major,
+            minor,
+            block_size_log2: b[OFF_BLOCK_SIZE_LOG2],
+            incompatible_features: u64_at(b, OFF_INCOMPAT, c)?,
+            compatible_features: u64_at(b, OFF_COMPAT, c)?,
+            sections: SectionTable {
+                directory_offset: u64_at(b, OFF_DIRECTORY_OFFSET, c)?,
+                block_count: u32_at(b, OFF_BLOCK_COUNT, c)?,
+                metadata_length: u32_at(b, OFF_METADATA_LENGTH, c)?,
+                metadata_offset: u64_at(b, OFF_METADATA_OFFSET, c)?,
+            },
+        })
+    }
+}
+
+fn check_magic(b: &[u8]) -> Result<()> {
+    let got = &b[..MAGIC.len()];
+    if got == MAGIC {
+        return Ok(());
+    }
+    let detail = if got[..4] == MAGIC[..4] {
+        "the file starts like an .oocf file but its magic is mangled: it went through a text-mode (line-ending) conversion".to_string()
+    } else if got[1..4] == MAGIC[1..4] && got[0] == 0x09 {
+        "the magic's high bit was stripped: the file went through a 7-bit transfer".to_string()
+    } else {
+        format!("not an .oocf file: magic is {got:02x?}")
+    };
+    Err(Error::malformed(Code::HeaderMagic, detail).at(0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip() {
+        let mut h = Header::new(16);
+        h.compatible_features = COMPAT_PROXIES;
+        h.sections = SectionTable {
+            directory_offset: 1 << 40,
+            block_count: 7,
+            metadata_offset: (1 << 40) + 224,
+            metadata_length: 99,
+        };
+        assert_eq!(Header::decode(&h.encode()).ok(), Some(h));
+    }
+
+    #[test]
+    fn text_mode_mangling_is_named() {
+        let mut b = Header::new(16).encode().to_vec();
+        b.remove(4); // CRLF -> LF drops the '\r'
+        b.push(0);
+        let e = Header::decode(&b).err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(e.contains("text-mode"), "{e}");
+    }
+}

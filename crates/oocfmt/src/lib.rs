@@ -1,0 +1,35 @@
+//! `oocfmt`: the `.oocf` out-of-core ray tracing container. This crate knows bytes and records,
+//! never geometry algorithms; `spec/oocfmt.md` is the contract it implements.
+//!
+//! - [`Writer`] streams blocks into a temporary file and renames it into place when complete.
+//! - [`Reader`] validates header, trailer, directory and metadata at open, loads the proxies,
+//!   and reads blocks by id (positioned reads or a memory map).
+//! - [`records`] holds the hot fixed-layout records and their zero-copy views.
+//! - [`verify`] checks a file at three depths and reports every problem with a stable code.
+
+mod bytes;
+pub mod checksum;
+pub mod codec;
+pub mod directory;
+pub mod error;
+pub mod header;
+pub mod metadata;
+mod mmap;
+pub mod reader;
+pub mod records;
+pub mod source;
+pub mod summary;
+pub mod trailer;
+pub mod verify;
+pub mod writer;
+
+pub use codec::Codec;
+pub use directory::{BlockEntry, BlockKind, CodecId};
+pub use error::{Code, Error, ErrorKind, Result, Severity};
+pub use header::Header;
+pub use metadata::Metadata;
+pub use mmap::MmapSource;
+pub use reader::{Block, Checksums, Limits, ReadOptions, Reader};
+pub use source::{ByteSource, FileSource};
+pub use trailer::Trailer;
+pub use writer::{EncodedBlock, WriteOptions, WriteSummary, Writer};

@@ -1,0 +1,320 @@
+//! The reader: `open` validates header, trailer, directory and metadata and loads the proxies;
+//! blocks are then fetched by id, checksummed and decompressed on demand.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use crate::checksum::{crc32c, Crc32c};
+use crate::codec::decode_into;
+use crate::directory::{check_placement, BlockEntry, BlockKind, ENTRY_LEN};
+use crate::error::{Code, Error, ErrorKind, Result};
+use crate::header::{Header, SectionTable, HEADER_LEN, OFF_HEADER_CRC, VERSION_MINOR};
+use crate::metadata::Metadata;
+use crate::mmap::MmapSource;
+use crate::records::{ProxyRecord, TreeletBlock, TriangleBlock, PROXY_LEN};
+use crate::source::{ByteSource, FileSource};
+use crate::trailer::{Trailer, TRAILER_LEN};
+
+/// Sizes a reader accepts before it allocates (spec §12).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    pub max_metadata_bytes: u32,
+    pub max_resident_bytes: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits { max_metadata_bytes: 16 << 20, max_resident_bytes: 1 << 30 }
+    }
+}
+
+/// Whether to check block CRCs. Skipping them is for fuzzing, where the fuzzer must reach the
+/// structural checks that stand behind them; the `fuzzing` feature forces it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Checksums {
+    #[default]
+    Verify,
+    Skip,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    pub limits: Limits,
+    pub checksums: Checksums,
+}
+
+impl ReadOptions {
+    pub(crate) fn check_crcs(&self) -> bool {
+        self.checksums == Checksums::Verify && !cfg!(feature = "fuzzing")
+    }
+}
+
+/// A decoded block: its id, its directory entry and its raw bytes.
+#[derive(Clone, Debug)]
+pub struct Block {
+    pub id: u32,
+    pub entry: BlockEntry,
+    pub data: Vec<u8>,
+}
+
+impl Block {
+    pub fn treelets(&self) -> Result<TreeletBlock<'_>> {
+        self.expect(BlockKind::Treelet)?;
+        TreeletBlock::parse(&self.data).map_err(|e| e.in_block(self.id))
+    }
+
+    pub fn triangles(&self, attrs: u16) -> Result<TriangleBlock<'_>> {
+        self.expect(BlockKind::Triangle)?;
+        TriangleBlock::parse(&self.data, Some(attrs)).map_err(|e| e.in_block(self.id))
+    }
+
+    pub fn proxies(&self) -> Result<Vec<ProxyRecord>> {
+        self.expect(BlockKind::Proxy)?;
+        ProxyRecord::decode_block(&self.data, self.entry.item_count as usize).map_err(|e| e.in_block(self.id))
+    }
+
+    fn expect(&self, kind: BlockKind) -> Result<()> {
+        if self.entry.kind != kind {
+            return Err(Error::malformed(
+                Code::TreeReference,
+                format!("a {} block where a {} block was expected", self.entry.kind.name(), kind.name()),
+            )
+            .in_block(self.id));
+        }
+        Ok(())
+    }
+}
+
+/// The parts of a file that `open` loads and checks.
+#[derive(Clone, Debug)]
+pub struct Index {
+    pub header: Header,
+    pub trailer: Trailer,
+    pub entries: Vec<BlockEntry>,
+    pub metadata: Metadata,
+}
+
+pub struct Reader {
+    source: Box<dyn ByteSource>,
+    name: Arc<str>,
+    opts: ReadOptions,
+    index: Index,
+    proxies: Vec<ProxyRecord>,
+}
+
+impl Reader {
+    /// Opens a file for positioned reads.
+    pub fn open(path: &Path, opts: ReadOptions) -> Result<Reader> {
+        let name: Arc<str> = Arc::from(path.display().to_string());
+        let src = FileSource::open(path).map_err(|e| Error::io(e, 0).in_file(&name))?;
+        Self::from_source(Box::new(src), name, opts)
+    }
+
+    /// Opens a file through a read-only memory map (see the `mmap` module for the risk).
+    pub fn open_mmap(path: &Path, opts: ReadOptions) -> Result<Reader> {
+        let name: Arc<str> = Arc::from(path.display().to_string());
+        let src = MmapSource::open(path).map_err(|e| Error::io(e, 0).in_file(&name))?;
+        Self::from_source(Box::new(src), name, opts)
+    }
+
+    pub fn from_source(source: Box<dyn ByteSource>, name: Arc<str>, opts: ReadOptions) -> Result<Reader> {
+        let inner = || -> Result<Reader> {
+            let index = read_index(source.as_ref(), &opts)?;
+            let proxies = load_proxies(source.as_ref(), &index.entries, &opts)?;
+            Ok(Reader { source, name: Arc::clone(&name), opts, index, proxies })
+        };
+        inner().map_err(|e| e.in_file(&name))
+    }
+
+    pub fn name(&self) -> &Arc<str> {
+        &self.name
+    }
+
+    pub fn header(&self) -> &Header {
+        &self.index.header
+    }
+
+    pub fn trailer(&self) -> &Trailer {
+        &self.index.trailer
+    }
+
+    pub fn entries(&self) -> &[BlockEntry] {
+        &self.index.entries
+    }
+
+    pub fn entry(&self, id: u32) -> Result<&BlockEntry> {
+        self.index.entries.get(id as usize).ok_or_else(|| {
+            Error::malformed(Code::TreeReference, format!("block {id} of {}", self.index.entries.len())).in_file(&self.name)
+        })
+    }
+
+    pub fn metadata(&self) -> &Metadata {
+        &self.index.metadata
+    }
+
+    /// All proxies, indexed by proxy id; loaded at open.
+    pub fn proxies(&self) -> &[ProxyRecord] {
+        &self.proxies
+    }
+
+    /// The file identity: the root checksum (spec §10).
+    pub fn identity(&self) -> u32 {
+        self.index.trailer.root_checksum
+    }
+
+    pub fn file_len(&self) -> u64 {
+        self.source.len()
+    }
+
+    pub fn source(&self) -> &dyn ByteSource {
+        self.source.as_ref()
+    }
+
+    /// Reads, checks and decompresses block `id`.
+    pub fn read_block(&self, id: u32) -> Result<Block> {
+        let entry = *self.entry(id)?;
+        let data = read_block_data(self.source.as_ref(), &entry, &self.opts).map_err(|e| e.in_block(id).in_file(&self.name))?;
+        Ok(Block { id, entry, data })
+    }
+
+    /// The stored bytes of block `id` without a copy, where the source is memory (a map).
+    pub fn stored_slice(&self, id: u32) -> Option<&[u8]> {
+        let e = self.index.entries.get(id as usize)?;
+        let all = self.source.as_slice()?;
+        all.get(usize::try_from(e.offset).ok()?..usize::try_from(e.end()).ok()?)
+    }
+}
+
+/// Reads one block's stored bytes, checks the CRC and decompresses into exactly `raw_length`.
+pub fn read_block_data(src: &dyn ByteSource, e: &BlockEntry, opts: &ReadOptions) -> Result<Vec<u8>> {
+    if e.offset.checked_add(u64::from(e.stored_length)).is_none_or(|end| end > src.len()) {
+        return Err(Error::malformed(Code::EntryOffset, format!("block bytes {}+{} pass the end of the file", e.offset, e.stored_length)).at(e.offset));
+    }
+    let mut stored_buf;
+    let stored: &[u8] = match src.as_slice().and_then(|s| s.get(usize::try_from(e.offset).ok()?..usize::try_from(e.end()).ok()?)) {
+        Some(s) => s,
+        None => {
+            stored_buf = vec![0u8; e.stored_length as usize];
+            src.read_exact_at(e.offset, &mut stored_buf).map_err(|err| Error::io(err, e.offset))?;
+            &stored_buf
+        }
+    };
+    if opts.check_crcs() {
+        let computed = crc32c(stored);
+        if computed != e.crc {
+            return Err(Error::new(ErrorKind::Checksum { code: Code::BlockChecksum, what: "block", stored: e.crc, computed }).at(e.offset));
+        }
+    }
+    let mut raw = vec![0u8; e.raw_length as usize];
+    decode_into(e.codec, stored, &mut raw).map_err(|err| err.at(e.offset))?;
+    Ok(raw)
+}
+
+/// Reads `len` bytes at `offset` after checking they lie in the source.
+pub(crate) fn read_vec(src: &dyn ByteSource, offset: u64, len: u64) -> Result<Vec<u8>> {
+    if offset.checked_add(len).is_none_or(|end| end > src.len()) {
+        return Err(Error::malformed(Code::Layout, format!("{len} bytes at {offset} pass the end of the file ({} bytes)", src.len())).at(offset));
+    }
+    let mut v = vec![0u8; len as usize];
+    src.read_exact_at(offset, &mut v).map_err(|e| Error::io(e, offset))?;
+    Ok(v)
+}
+
+/// Reads and checks the header (fixed 64 bytes at 0).
+pub fn read_header(src: &dyn ByteSource) -> Result<(Header, Vec<u8>)> {
+    let min = (HEADER_LEN + TRAILER_LEN) as u64;
+    if src.len() < min {
+        return Err(Error::malformed(Code::FileTooSmall, format!("{} bytes, less than header and trailer ({min})", src.len())));
+    }
+    let bytes = read_vec(src, 0, HEADER_LEN as u64)?;
+    Ok((Header::decode(&bytes)?, bytes))
+}
+
+pub fn read_trailer(src: &dyn ByteSource) -> Result<Trailer> {
+    let at = src.len().saturating_sub(TRAILER_LEN as u64);
+    let bytes = read_vec(src, at, TRAILER_LEN as u64)?;
+    Trailer::decode(&bytes, at)
+}
+
+/// Reads the directory of `sections` and checks its CRC (when `crc` is given) and entries.
+pub fn read_directory(src: &dyn ByteSource, sections: &SectionTable, block_size: u32, crc: Option<u32>) -> Result<(Vec<BlockEntry>, Vec<u8>)> {
+    let len = u64::from(sections.block_count) * ENTRY_LEN as u64;
+    let bytes = read_vec(src, sections.directory_offset, len)?;
+    if let Some(stored) = crc {
+        let computed = crc32c(&bytes);
+        if computed != stored {
+            return Err(Error::new(ErrorKind::Checksum { code: Code::DirectoryChecksum, what: "directory", stored, computed }).at(sections.directory_offset));
+        }
+    }
+    let entries = bytes
+        .chunks_exact(ENTRY_LEN)
+        .zip(0u32..)
+        .map(|(b, id)| BlockEntry::decode(b, block_size).map_err(|e| e.in_block(id).at(sections.directory_offset + u64::from(id) * ENTRY_LEN as u64)))
+        .collect::<Result<Vec<_>>>()?;
+    if let Some((id, e)) = check_placement(&entries, sections.directory_offset).into_iter().next() {
+        return Err(e.in_block(id));
+    }
+    Ok((entries, bytes))
+}
+
+/// Reads and decodes the metadata, checking length limit and CRC.
+pub fn read_metadata(src: &dyn ByteSource, header: &Header, trailer: &Trailer, limits: &Limits) -> Result<(Metadata, Vec<u8>)> {
+    let s = &trailer.sections;
+    if s.metadata_length > limits.max_metadata_bytes {
+        return Err(Error::new(ErrorKind::Limit {
+            code: Code::MetadataLimit,
+            what: "metadata",
+            requested: u64::from(s.metadata_length),
+            limit: u64::from(limits.max_metadata_bytes),
+        })
+        .at(s.metadata_offset));
+    }
+    let bytes = read_vec(src, s.metadata_offset, u64::from(s.metadata_length))?;
+    let computed = crc32c(&bytes);
+    if computed != trailer.metadata_crc {
+        return Err(Error::new(ErrorKind::Checksum { code: Code::MetadataChecksum, what: "metadata", stored: trailer.metadata_crc, computed }).at(s.metadata_offset));
+    }
+    let meta = Metadata::decode(&bytes, header.minor > VERSION_MINOR).map_err(|e| e.at(s.metadata_offset))?;
+    Ok((meta, bytes))
+}
+
+/// The root checksum over header, directory and metadata bytes.
+pub fn root_checksum(header: &[u8], directory: &[u8], metadata: &[u8]) -> u32 {
+    let mut c = Crc32c::new();
+    c.update(header.get(..OFF_HEADER_CRC).unwrap_or(header));
+    c.update(directory);
+    c.update(metadata);
+    c.finish()
+}
+
+fn read_index(src: &dyn ByteSource, opts: &ReadOptions) -> Result<Index> {
+    let (header, header_bytes) = read_header(src)?;
+    let trailer = read_trailer(src)?;
+    if header.sections != trailer.sections {
+        return Err(Error::malformed(Code::Layout, format!("header says {:?}, trailer says {:?}", header.sections, trailer.sections)));
+    }
+    header.sections.check_tiling(src.len())?;
+    let (entries, dir_bytes) = read_directory(src, &header.sections, header.block_size(), Some(trailer.directory_crc))?;
+    let (metadata, meta_bytes) = read_metadata(src, &header, &trailer, &opts.limits)?;
+    let computed = root_checksum(&header_bytes, &dir_bytes, &meta_bytes);
+    if computed != trailer.root_checksum {
+        return Err(Error::new(ErrorKind::Checksum { code: Code::RootChecksum, what: "root", stored: trailer.root_checksum, computed }));
+    }
+    Ok(Index { header, trailer, entries, metadata })
+}
+
+fn load_proxies(src: &dyn ByteSource, entries: &[BlockEntry], opts: &ReadOptions) -> Result<Vec<ProxyRecord>> {
+    let resident: u64 = entries.iter().filter(|e| e.kind == BlockKind::Proxy).map(|e| u64::from(e.raw_length)).sum();
+    if resident > opts.limits.max_resident_bytes {
+        return Err(Error::limit("resident proxies", resident, opts.limits.max_resident_bytes));
+    }
+    let mut proxies = Vec::with_capacity((resident / PROXY_LEN as u64) as usize);
+    for (id, e) in (0u32..).zip(entries) {
+        if e.kind == BlockKind::Proxy {
+            let data = read_block_data(src, e, opts).map_err(|err| err.in_block(id))?;
+            let block = ProxyRecord::decode_block(&data, e.item_count as usize).map_err(|err| err.in_block(id))?;
+            proxies.extend(block);
+        }
+    }
+    Ok(proxies)
+}

@@ -1,0 +1,16 @@
+//! The hot records: fixed little-endian layouts, encoded and decoded by hand (spec §5–§8).
+//! Each file holds one record family with its bit layout in one place.
+
+pub mod node;
+pub mod proxy;
+pub mod sample;
+pub mod treelet;
+pub mod triangle;
+
+pub use node::{
+    Node, MAX_CHILD_TREELET, MAX_CHILD_UNITS, MAX_LEAF_TRIANGLES, MAX_TREE_DEPTH, NODE_BASIC_LEN, NODE_LEAF_LEN, NODE_LOD_LEN, NO_PROXY,
+};
+pub use proxy::{ProxyRecord, PROXY_DIRECTIONS, PROXY_LEN};
+pub use sample::{Sample, Voxel};
+pub use treelet::{TreeletBlock, TreeletBlockWriter, TreeletSummary};
+pub use triangle::{Triangle, TriangleBlock, TriangleBlockWriter, Vertex};

@@ -1,0 +1,309 @@
+//! Treelet blocks (spec §6.2): a table of treelet starts, a node area and a voxel area.
+
+use std::ops::Range;
+
+use super::node::{Node, MAX_CHILD_UNITS};
+use super::sample::Voxel;
+use crate::bytes::{u32_at, PutLe};
+use crate::error::{bad, Code, Error, Result};
+
+const HEAD_LEN: usize = 16;
+
+/// A zero-copy view of a treelet block's raw bytes, with its framing checked.
+#[derive(Clone, Copy, Debug)]
+pub struct TreeletBlock<'a> {
+    starts: &'a [u8],
+    nodes: &'a [u8],
+    voxels: &'a [u8],
+}
+
+/// What one pass over a treelet block found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TreeletSummary {
+    pub treelets: u64,
+    pub basic_nodes: u64,
+    pub lod_nodes: u64,
+    pub leaves: u64,
+    pub voxels_single: u64,
+    pub voxels_six: u64,
+}
+
+impl<'a> TreeletBlock<'a> {
+    /// Checks the header, the section sizes and the treelet start table.
+    pub fn parse(raw: &'a [u8]) -> Result<Self> {
+        let c = Code::TreeletLayout;
+        let count = u32_at(raw, 0, c)? as usize;
+        let node_bytes = u32_at(raw, 4, c)? as usize;
+        let voxel_bytes = u32_at(raw, 8, c)? as usize;
+        if u32_at(raw, 12, c)? != 0 {
+            return bad(c, "reserved treelet block field is not zero");
+        }
+        let expected = (HEAD_LEN as u64) + 4 * count as u64 + node_bytes as u64 + voxel_bytes as u64;
+        if count == 0 || node_bytes % 8 != 0 || voxel_bytes % 4 != 0 || expected != raw.len() as u64 {
+            return bad(
+                c,
+                format!(
+                    "{count} treelets, {node_bytes} node bytes and {voxel_bytes} voxel bytes do not frame a {}-byte block",
+                    raw.len()
+                ),
+            );
+        }
+        let nodes_at = HEAD_LEN + 4 * count;
+        let block = TreeletBlock {
+            starts: &raw[HEAD_LEN..nodes_at],
+            nodes: &raw[nodes_at..nodes_at + node_bytes],
+            voxels: &raw[nodes_at + node_bytes..],
+        };
+        let mut prev: Option<u32> = None;
+        for t in 0..count {
+            let s = u32_at(block.starts, 4 * t, c)?;
+            let ok = match prev {
+                None => s == 0,
+                Some(p) => s > p,
+            };
+            if !ok || s % 8 != 0 || s as usize >= node_bytes {
+                return bad(c, format!("treelet {t} starts at {s}: not aligned, increasing and inside the node area"));
+            }
+            prev = Some(s);
+        }
+        Ok(block)
+    }
+
+    pub fn treelet_count(&self) -> usize {
+        self.starts.len() / 4
+    }
+
+    pub fn node_area(&self) -> &'a [u8] {
+        self.nodes
+    }
+
+    pub fn voxel_area(&self) -> &'a [u8] {
+        self.voxels
+    }
+
+    /// The node-area byte range of treelet `t`.
+    pub fn treelet_span(&self, t: usize) -> Result<Range<usize>> {
+        let start = u32_at(self.starts, 4 * t, Code::TreeReference)
+            .map_err(|_| Error::malformed(Code::TreeReference, format!("treelet {t} of {}", self.treelet_count())))?;
+        let end = match u32_at(self.starts, 4 * (t + 1), Code::TreeletLayout) {
+            Ok(e) => e as usize,
+            Err(_) => self.nodes.len(),
+        };
+        Ok(start as usize..end)
+    }
+
+    /// The node at byte `pos` of the node area.
+    pub fn node(&self, pos: usize) -> Result<Node> {
+        Node::decode(self.nodes, pos)
+    }
+
+    /// The voxel of a LOD node.
+    pub fn voxel(&self, voxel_offset: u32) -> Result<Voxel> {
+        Voxel::decode(self.voxels, voxel_offset as usize)
+    }
+
+    /// Byte position of a child, from its parent's position and the stored offset.
+    pub fn child_pos(pos: usize, units: u16) -> usize {
+        pos + 8 * usize::from(units)
+    }
+
+    /// Walks every treelet in preorder and checks that its nodes are well formed, that children
+    /// are forward and inside the treelet, that the nodes cover the treelet's bytes exactly once,
+    /// and that every voxel decodes. Calls `visit(treelet, pos, node)` for each node.
+    pub fn walk(&self, mut visit: impl FnMut(usize, usize, &Node) -> Result<()>) -> Result<TreeletSummary> {
+        let mut sum = TreeletSummary {
+            treelets: self.treelet_count() as u64,
+            ..TreeletSummary::default()
+        };
+        let mut stack = Vec::with_capacity(16);
+        for t in 0..self.treelet_count() {
+            let span = self.treelet_span(t)?;
+            let mut cursor = span.start;
+            stack.clear();
+            stack.push(span.start);
+            while let Some(pos) = stack.pop() {
+                if pos != cursor {
+                    return Err(Error::malformed(
+                        Code::NodeOverlap,
+                        format!("treelet {t}: node at {pos} but preorder puts the next node at {cursor}"),
+                    )
+                    .at(pos as u64));
+                }
+                let node = self.node(pos)?;
+                cursor += node.byte_len();
+                if cursor > span.end {
+                    return Err(Error::malformed(Code::NodeOverlap, format!("treelet {t}: node at {pos} runs past the treelet's end {}", span.end)).at(pos as u64));
+                }
+                match node {
+                    Node::Basic { left, right, .. } => {
+                        sum.basic_nodes += 1;
+                        if left != 0 && right != 0 && right <= left {
+                            return Err(Error::malformed(Code::NodeChild, format!("node at {pos}: right child before left")).at(pos as u64));
+                        }
+                        for units in [right, left] {
+                            if units != 0 {
+                                let child = Self::child_pos(pos, units);
+                                if child >= span.end {
+                                    return Err(Error::malformed(Code::NodeChild, format!("node at {pos}: child at {child} outside treelet {t} ({}..{})", span.start, span.end)).at(pos as u64));
+                                }
+                                stack.push(child);
+                            }
+                        }
+                    }
+                    Node::Lod { voxel_offset, .. } => {
+                        sum.lod_nodes += 1;
+                        match self.voxel(voxel_offset).map_err(|e| e.at(pos as u64))? {
+                            Voxel::Single(_) => sum.voxels_single += 1,
+                            Voxel::Six(_) => sum.voxels_six += 1,
+                        }
+                    }
+                    Node::Leaf { .. } => sum.leaves += 1,
+                }
+                visit(t, pos, &node)?;
+            }
+            if cursor != span.end {
+                return Err(Error::malformed(
+                    Code::NodeOverlap,
+                    format!("treelet {t}: nodes end at {cursor}, the treelet at {}", span.end),
+                )
+                .at(cursor as u64));
+            }
+        }
+        Ok(sum)
+    }
+}
+
+/// Encodes a treelet block record by record. The caller lays the tree out; this only writes
+/// what it is given, in order.
+#[derive(Clone, Debug, Default)]
+pub struct TreeletBlockWriter {
+    starts: Vec<u32>,
+    nodes: Vec<u8>,
+    voxels: Vec<u8>,
+}
+
+impl TreeletBlockWriter {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Starts a new treelet; returns its index in the block.
+    pub fn begin_treelet(&mut self) -> u32 {
+        self.starts.push(self.nodes.len() as u32);
+        (self.starts.len() - 1) as u32
+    }
+
+    /// Byte position the next node will get in the node area.
+    pub fn next_node_pos(&self) -> usize {
+        self.nodes.len()
+    }
+
+    pub fn push_node(&mut self, node: &Node) {
+        node.encode_into(&mut self.nodes);
+    }
+
+    /// Rewrites a node already pushed at `pos` (to fill in child offsets once known).
+    pub fn patch_node(&mut self, pos: usize, node: &Node) -> Result<()> {
+        let mut bytes = Vec::with_capacity(node.byte_len());
+        node.encode_into(&mut bytes);
+        let slot = self
+            .nodes
+            .get_mut(pos..pos + bytes.len())
+            .ok_or_else(|| Error::parameter(format!("no node at {pos} to patch")))?;
+        slot.copy_from_slice(&bytes);
+        Ok(())
+    }
+
+    /// Appends a voxel; returns the offset a LOD node stores for it.
+    pub fn push_voxel(&mut self, voxel: &Voxel) -> u32 {
+        let off = self.voxels.len() as u32;
+        voxel.encode_into(&mut self.voxels);
+        off
+    }
+
+    pub fn treelet_count(&self) -> usize {
+        self.starts.len()
+    }
+
+    /// The raw length the block will have.
+    pub fn raw_len(&self) -> usize {
+        Self::raw_len_for(self.starts.len(), self.nodes.len(), self.voxels.len())
+    }
+
+    /// The raw length of a block of `treelets` treelets with these node and voxel bytes.
+    pub fn raw_len_for(treelets: usize, node_bytes: usize, voxel_bytes: usize) -> usize {
+        HEAD_LEN + 4 * treelets + node_bytes + voxel_bytes
+    }
+
+    /// Raw bytes for the next node offset in 8-byte units, checked against the 12-bit field.
+    pub fn units_between(parent: usize, child: usize) -> Result<u16> {
+        let units = child.checked_sub(parent).map(|d| d / 8).unwrap_or(0);
+        if units == 0 || units > usize::from(MAX_CHILD_UNITS) || (child - parent) % 8 != 0 {
+            return Err(Error::parameter(format!("child at {child} cannot be addressed from node at {parent}")));
+        }
+        Ok(units as u16)
+    }
+
+    pub fn finish(self) -> Vec<u8> {
+        let mut v = Vec::with_capacity(self.raw_len());
+        v.put_u32(self.starts.len() as u32);
+        v.put_u32(self.nodes.len() as u32);
+        v.put_u32(self.voxels.len() as u32);
+        v.put_u32(0);
+        for s in &self.starts {
+            v.put_u32(*s);
+        }
+        v.extend_from_slice(&self.nodes);
+        v.extend_from_slice(&self.voxels);
+        v
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::records::sample::Sample;
+
+    fn two_leaf_treelet() -> Vec<u8> {
+        let mut w = TreeletBlockWriter::new();
+        w.begin_treelet();
+        w.push_node(&Node::Basic { axis: 0, split: 0.5, left: 1, right: 2 });
+        w.push_node(&Node::Leaf { count: 1, first: 0, block: 1 });
+        w.push_node(&Node::Leaf { count: 1, first: 1, block: 1 });
+        w.begin_treelet();
+        let vox = w.push_voxel(&Voxel::Single(Sample::pack([0.0, 0.0, 1.0], [1.0; 3])));
+        w.push_node(&Node::Lod {
+            axis: 1,
+            split: 0.0,
+            radius: 1.0,
+            left_present: true,
+            right_present: true,
+            child_treelet: 0,
+            child_block: 2,
+            voxel_offset: vox,
+            proxy: 0,
+        });
+        w.finish()
+    }
+
+    #[test]
+    fn walk_counts_nodes() {
+        let raw = two_leaf_treelet();
+        let b = TreeletBlock::parse(&raw).map_err(|e| e.to_string());
+        let sum = b.and_then(|b| b.walk(|_, _, _| Ok(())).map_err(|e| e.to_string()));
+        assert_eq!(
+            sum,
+            Ok(TreeletSummary { treelets: 2, basic_nodes: 1, lod_nodes: 1, leaves: 2, voxels_single: 1, voxels_six: 0 })
+        );
+    }
+
+    #[test]
+    fn a_child_pointing_backwards_or_outside_is_refused() {
+        let mut raw = two_leaf_treelet();
+        // Right child offset 2 -> 3: now it points at the next treelet's LOD node.
+        let at = 16 + 8;
+        raw[at + 2] = (raw[at + 2] & 0x0f) | 0x30;
+        let e = TreeletBlock::parse(&raw).and_then(|b| b.walk(|_, _, _| Ok(())));
+        assert!(matches!(e.err().map(|e| e.code()), Some(Code::NodeChild | Code::NodeOverlap)));
+    }
+}

@@ -1,0 +1,357 @@
+//! Triangle blocks (spec §8): a list section of 16-bit triangle indices, a triangle section of
+//! 16-bit vertex indices, and a vertex section of de-duplicated vertices.
+
+use crate::bytes::{f32_at, u16_at, u32_at, PutLe};
+use crate::error::{bad, Code, Error, Result};
+
+pub const ATTR_NORMALS: u16 = 1 << 0;
+pub const ATTR_COLOURS: u16 = 1 << 1;
+pub const ATTR_MATERIALS: u16 = 1 << 2;
+const KNOWN_ATTRS: u16 = ATTR_NORMALS | ATTR_COLOURS | ATTR_MATERIALS;
+const HEAD_LEN: usize = 16;
+/// Largest list, triangle and vertex count of one block (16-bit indices).
+pub const MAX_ITEMS: usize = 0xffff;
+
+fn align4(n: usize) -> usize {
+    (n + 3) & !3
+}
+
+fn triangle_len(attrs: u16) -> usize {
+    if attrs & ATTR_MATERIALS != 0 {
+        8
+    } else {
+        6
+    }
+}
+
+fn vertex_len(attrs: u16) -> usize {
+    12 + if attrs & ATTR_NORMALS != 0 { 4 } else { 0 } + if attrs & ATTR_COLOURS != 0 { 4 } else { 0 }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+pub struct Triangle {
+    pub v: [u16; 3],
+    pub material: Option<u16>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Vertex {
+    pub position: [f32; 3],
+    /// Octahedral-encoded normal, as stored.
+    pub normal: Option<[i16; 2]>,
+    pub colour: Option<[u8; 4]>,
+}
+
+/// Octahedral normal encoding (spec §8).
+pub fn oct_encode(n: [f32; 3]) -> [i16; 2] {
+    let l1 = n[0].abs() + n[1].abs() + n[2].abs();
+    if !(l1.is_finite() && l1 > 0.0) {
+        return [0, 0];
+    }
+    let (mut x, mut y) = (n[0] / l1, n[1] / l1);
+    if n[2] < 0.0 {
+        let (ox, oy) = (x, y);
+        x = (1.0 - oy.abs()) * if ox >= 0.0 { 1.0 } else { -1.0 };
+        y = (1.0 - ox.abs()) * if oy >= 0.0 { 1.0 } else { -1.0 };
+    }
+    let q = |c: f32| (c.clamp(-1.0, 1.0) * 32767.0).round() as i16;
+    [q(x), q(y)]
+}
+
+/// Decodes an octahedral normal to a unit vector.
+pub fn oct_decode(e: [i16; 2]) -> [f32; 3] {
+    let x = f32::from(e[0]) / 32767.0;
+    let y = f32::from(e[1]) / 32767.0;
+    let z = 1.0 - x.abs() - y.abs();
+    let t = (-z).max(0.0);
+    let x = x + if x >= 0.0 { -t } else { t };
+    let y = y + if y >= 0.0 { -t } else { t };
+    let len = (x * x + y * y + z * z).sqrt();
+    [x / len, y / len, z / len]
+}
+
+/// A zero-copy view of a triangle block.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleBlock<'a> {
+    list: &'a [u8],
+    triangles: &'a [u8],
+    vertices: &'a [u8],
+    attrs: u16,
+    primary: u16,
+}
+
+impl<'a> TriangleBlock<'a> {
+    /// Checks the header and the section sizes. `attrs`, when given, is what the schema says.
+    pub fn parse(raw: &'a [u8], attrs: Option<u16>) -> Result<Self> {
+        let c = Code::TriangleLayout;
+        let l = u32_at(raw, 0, c)? as usize;
+        let t = u32_at(raw, 4, c)? as usize;
+        let w = u32_at(raw, 8, c)? as usize;
+        let a = u16_at(raw, 12, c)?;
+        let primary = u16_at(raw, 14, c)?;
+        if a & !KNOWN_ATTRS != 0 {
+            return bad(c, format!("reserved attribute bits {a:#06x}"));
+        }
+        if let Some(want) = attrs {
+            if a != want {
+                return bad(Code::TriangleAttributes, format!("attributes {a:#x}, schema says {want:#x}"));
+            }
+        }
+        if l > MAX_ITEMS || t == 0 || t > MAX_ITEMS || w == 0 || w > MAX_ITEMS || usize::from(primary) > t {
+            return bad(c, format!("counts list {l}, triangles {t}, vertices {w}, primaries {primary} out of range"));
+        }
+        let list_len = align4(2 * l);
+        let tri_len = align4(t * triangle_len(a));
+        let vert_len = w * vertex_len(a);
+        if HEAD_LEN + list_len + tri_len + vert_len != raw.len() {
+            return bad(c, format!("sections of {list_len}, {tri_len} and {vert_len} bytes do not fill a {}-byte block", raw.len()));
+        }
+        let tri_at = HEAD_LEN + list_len;
+        let vert_at = tri_at + tri_len;
+        let pad_ok = raw[HEAD_LEN + 2 * l..tri_at].iter().chain(&raw[tri_at + t * triangle_len(a)..vert_at]).all(|&b| b == 0);
+        if !pad_ok {
+            return bad(c, "padding bytes are not zero");
+        }
+        Ok(TriangleBlock {
+            list: &raw[HEAD_LEN..HEAD_LEN + 2 * l],
+            triangles: &raw[tri_at..tri_at + t * triangle_len(a)],
+            vertices: &raw[vert_at..],
+            attrs: a,
+            primary,
+        })
+    }
+
+    pub fn list_count(&self) -> usize {
+        self.list.len() / 2
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len() / triangle_len(self.attrs)
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.vertices.len() / vertex_len(self.attrs)
+    }
+
+    pub fn primary_count(&self) -> usize {
+        usize::from(self.primary)
+    }
+
+    pub fn attributes(&self) -> u16 {
+        self.attrs
+    }
+
+    /// List entry `i`: a triangle index.
+    pub fn list(&self, i: usize) -> Result<u16> {
+        u16_at(self.list, 2 * i, Code::TreeReference)
+    }
+
+    pub fn triangle(&self, i: usize) -> Result<Triangle> {
+        let at = i * triangle_len(self.attrs);
+        let c = Code::TriangleIndex;
+        Ok(Triangle {
+            v: [u16_at(self.triangles, at, c)?, u16_at(self.triangles, at + 2, c)?, u16_at(self.triangles, at + 4, c)?],
+            material: if self.attrs & ATTR_MATERIALS != 0 { Some(u16_at(self.triangles, at + 6, c)?) } else { None },
+        })
+    }
+
+    pub fn vertex(&self, i: usize) -> Result<Vertex> {
+        let mut at = i * vertex_len(self.attrs);
+        let c = Code::TriangleIndex;
+        let position = [f32_at(self.vertices, at, c)?, f32_at(self.vertices, at + 4, c)?, f32_at(self.vertices, at + 8, c)?];
+        at += 12;
+        let normal = if self.attrs & ATTR_NORMALS != 0 {
+            let n = [u16_at(self.vertices, at, c)? as i16, u16_at(self.vertices, at + 2, c)? as i16];
+            at += 4;
+            Some(n)
+        } else {
+            None
+        };
+        let colour = if self.attrs & ATTR_COLOURS != 0 {
+            let b = self.vertices.get(at..at + 4).ok_or_else(|| Error::malformed(c, "vertex colour past the end"))?;
+            Some([b[0], b[1], b[2], b[3]])
+        } else {
+            None
+        };
+        Ok(Vertex { position, normal, colour })
+    }
+
+    /// The three positions of triangle `i`.
+    pub fn positions(&self, i: usize) -> Result<[[f32; 3]; 3]> {
+        let t = self.triangle(i)?;
+        Ok([
+            self.vertex(usize::from(t.v[0]))?.position,
+            self.vertex(usize::from(t.v[1]))?.position,
+            self.vertex(usize::from(t.v[2]))?.position,
+        ])
+    }
+
+    /// Checks every index and every position. Material indices are checked by deep verify,
+    /// which knows the material table.
+    pub fn check_contents(&self) -> Result<()> {
+        let (t, w) = (self.triangle_count(), self.vertex_count());
+        for i in 0..self.list_count() {
+            let e = self.list(i)?;
+            if usize::from(e) >= t {
+                return bad(Code::TriangleIndex, format!("list entry {i} names triangle {e} of {t}"));
+            }
+        }
+        for i in 0..t {
+            let tri = self.triangle(i)?;
+            if let Some(&bad_v) = tri.v.iter().find(|&&v| usize::from(v) >= w) {
+                return bad(Code::TriangleIndex, format!("triangle {i} names vertex {bad_v} of {w}"));
+            }
+        }
+        for i in 0..w {
+            let p = self.vertex(i)?.position;
+            if !p.iter().all(|c| c.is_finite()) {
+                return bad(Code::VertexNotFinite, format!("vertex {i} is at {p:?}"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Encodes a triangle block. Vertex de-duplication and packing decisions are the caller's.
+#[derive(Clone, Debug)]
+pub struct TriangleBlockWriter {
+    attrs: u16,
+    list: Vec<u16>,
+    triangles: Vec<Triangle>,
+    vertices: Vec<Vertex>,
+    primary: u16,
+}
+
+impl TriangleBlockWriter {
+    pub fn new(attrs: u16) -> Self {
+        TriangleBlockWriter { attrs, list: Vec::new(), triangles: Vec::new(), vertices: Vec::new(), primary: 0 }
+    }
+
+    pub fn push_vertex(&mut self, v: Vertex) -> Result<u16> {
+        Self::index(self.vertices.len(), "vertices")?;
+        self.vertices.push(v);
+        Ok((self.vertices.len() - 1) as u16)
+    }
+
+    pub fn push_triangle(&mut self, t: Triangle) -> Result<u16> {
+        Self::index(self.triangles.len(), "triangles")?;
+        self.triangles.push(t);
+        Ok((self.triangles.len() - 1) as u16)
+    }
+
+    pub fn push_list(&mut self, triangle: u16) -> Result<u16> {
+        Self::index(self.list.len(), "list entries")?;
+        self.list.push(triangle);
+        Ok((self.list.len() - 1) as u16)
+    }
+
+    /// The first `n` triangles are primaries (spec §8).
+    pub fn set_primary_count(&mut self, n: u16) {
+        self.primary = n;
+    }
+
+    fn index(len: usize, what: &str) -> Result<()> {
+        if len >= MAX_ITEMS {
+            return Err(Error::parameter(format!("a triangle block holds at most {MAX_ITEMS} {what}")));
+        }
+        Ok(())
+    }
+
+    /// The raw length for the given counts and attributes.
+    pub fn raw_len_for(attrs: u16, list: usize, triangles: usize, vertices: usize) -> usize {
+        HEAD_LEN + align4(2 * list) + align4(triangles * triangle_len(attrs)) + vertices * vertex_len(attrs)
+    }
+
+    pub fn raw_len(&self) -> usize {
+        Self::raw_len_for(self.attrs, self.list.len(), self.triangles.len(), self.vertices.len())
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    pub fn finish(self) -> Vec<u8> {
+        let mut v = Vec::with_capacity(self.raw_len());
+        v.put_u32(self.list.len() as u32);
+        v.put_u32(self.triangles.len() as u32);
+        v.put_u32(self.vertices.len() as u32);
+        v.put_u16(self.attrs);
+        v.put_u16(self.primary);
+        for e in &self.list {
+            v.put_u16(*e);
+        }
+        v.resize(align4(v.len()), 0);
+        for t in &self.triangles {
+            for i in t.v {
+                v.put_u16(i);
+            }
+            if self.attrs & ATTR_MATERIALS != 0 {
+                v.put_u16(t.material.unwrap_or(0));
+            }
+        }
+        v.resize(align4(v.len()), 0);
+        for x in &self.vertices {
+            for c in x.position {
+                v.put_f32(c);
+            }
+            if self.attrs & ATTR_NORMALS != 0 {
+                let n = x.normal.unwrap_or([0, 0]);
+                v.put_u16(n[0] as u16);
+                v.put_u16(n[1] as u16);
+            }
+            if self.attrs & ATTR_COLOURS != 0 {
+                v.extend_from_slice(&x.colour.unwrap_or([255; 4]));
+            }
+        }
+        v
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_block_with_every_attribute_round_trips() {
+        let attrs = ATTR_NORMALS | ATTR_COLOURS | ATTR_MATERIALS;
+        let mut w = TriangleBlockWriter::new(attrs);
+        for p in [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+            let r = w.push_vertex(Vertex { position: p, normal: Some(oct_encode([0.0, 0.0, -1.0])), colour: Some([1, 2, 3, 4]) });
+            assert!(r.is_ok());
+        }
+        assert!(w.push_triangle(Triangle { v: [0, 1, 2], material: Some(7) }).is_ok());
+        assert!(w.push_list(0).is_ok());
+        w.set_primary_count(1);
+        let raw = w.finish();
+        let b = TriangleBlock::parse(&raw, Some(attrs));
+        assert!(b.is_ok());
+        let Ok(b) = b else { return };
+        assert!(b.check_contents().is_ok());
+        assert_eq!(b.triangle(0).ok(), Some(Triangle { v: [0, 1, 2], material: Some(7) }));
+        let n = b.vertex(0).ok().and_then(|v| v.normal).map(oct_decode);
+        assert_eq!(n, Some([0.0, 0.0, -1.0]));
+        assert_eq!(b.vertex(2).ok().map(|v| v.colour), Some(Some([1, 2, 3, 4])));
+    }
+
+    #[test]
+    fn octahedral_normals_are_accurate() {
+        for i in 0..500 {
+            let t = i as f32 * 0.131;
+            let n = [t.sin() * (t * 0.3).cos(), t.cos() * (t * 0.3).cos(), (t * 0.3).sin()];
+            let m = oct_decode(oct_encode(n));
+            let dot = n[0] * m[0] + n[1] * m[1] + n[2] * m[2];
+            assert!(dot > 0.99999, "{n:?} {m:?}");
+        }
+    }
+
+    #[test]
+    fn wrong_schema_and_bad_indices_are_refused() {
+        let mut w = TriangleBlockWriter::new(0);
+        let _ = w.push_vertex(Vertex { position: [0.0; 3], normal: None, colour: None });
+        let _ = w.push_triangle(Triangle { v: [0, 0, 5], material: None });
+        let raw = w.finish();
+        assert_eq!(TriangleBlock::parse(&raw, Some(ATTR_NORMALS)).err().map(|e| e.code()), Some(Code::TriangleAttributes));
+        let b = TriangleBlock::parse(&raw, Some(0));
+        assert_eq!(b.ok().and_then(|b| b.check_contents().err()).map(|e| e.code()), Some(Code::TriangleIndex));
+    }
+}

@@ -1,0 +1,234 @@
+//! Per-block facts (one pass over a decoded block) and the file summary `inspect` prints.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use crate::directory::{BlockEntry, BlockKind};
+use crate::error::{bad, Code, Result};
+use crate::header::{COMPAT_LOD_VOXELS, COMPAT_PROXIES};
+use crate::metadata::Metadata;
+use crate::records::{Node, ProxyRecord, TreeletBlock, TreeletSummary, TriangleBlock};
+use crate::Reader;
+
+/// What one block holds, found by decoding it and checking its framing.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BlockFacts {
+    Treelet { nodes: TreeletSummary, leaf_triangle_refs: u64 },
+    Triangle { list: u32, triangles: u32, vertices: u32, primaries: u32, max_material: Option<u16> },
+    Proxy { node_blocks: Vec<u32> },
+}
+
+/// Decodes the framing of `raw` (block `id` with directory entry `e`) and checks every record
+/// it can check alone. `attrs` is the schema's triangle attribute word, when known.
+pub fn survey_block(e: &BlockEntry, raw: &[u8], attrs: Option<u16>) -> Result<BlockFacts> {
+    let facts = match e.kind {
+        BlockKind::Treelet => {
+            let block = TreeletBlock::parse(raw)?;
+            let mut refs = 0u64;
+            let nodes = block.walk(|_, _, n| {
+                if let Node::Leaf { count, .. } = n {
+                    refs += u64::from(*count);
+                }
+                Ok(())
+            })?;
+            BlockFacts::Treelet { nodes, leaf_triangle_refs: refs }
+        }
+        BlockKind::Triangle => {
+            let b = TriangleBlock::parse(raw, attrs)?;
+            b.check_contents()?;
+            let mut max_material = None;
+            for i in 0..b.triangle_count() {
+                if let Some(m) = b.triangle(i)?.material {
+                    max_material = max_material.max(Some(m));
+                }
+            }
+            BlockFacts::Triangle {
+                list: b.list_count() as u32,
+                triangles: b.triangle_count() as u32,
+                vertices: b.vertex_count() as u32,
+                primaries: b.primary_count() as u32,
+                max_material,
+            }
+        }
+        BlockKind::Proxy => {
+            let records = ProxyRecord::decode_block(raw, e.item_count as usize)?;
+            BlockFacts::Proxy { node_blocks: records.iter().map(|p| p.node_block).collect() }
+        }
+    };
+    let items = facts.items();
+    if items != u64::from(e.item_count) {
+        return bad(Code::EntryItemCount, format!("directory says {} items, the block holds {items}", e.item_count));
+    }
+    Ok(facts)
+}
+
+impl BlockFacts {
+    /// The count the directory's item_count must equal.
+    pub fn items(&self) -> u64 {
+        match self {
+            BlockFacts::Treelet { nodes, .. } => nodes.treelets,
+            BlockFacts::Triangle { triangles, .. } => u64::from(*triangles),
+            BlockFacts::Proxy { node_blocks } => node_blocks.len() as u64,
+        }
+    }
+}
+
+/// One row of the per-level table.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct LevelRow {
+    /// `0`, `1`, … for treelet levels, then `triangles` and `proxies`.
+    pub level: String,
+    pub blocks: u64,
+    pub treelets: u64,
+    pub basic_nodes: u64,
+    pub lod_nodes: u64,
+    pub leaves: u64,
+    pub voxels_single: u64,
+    pub voxels_six: u64,
+    pub triangles: u64,
+    pub proxies: u64,
+    pub raw_bytes: u64,
+    pub stored_bytes: u64,
+    pub ratio: f64,
+    pub codecs: BTreeMap<String, u64>,
+}
+
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Residency {
+    /// Header, directory, metadata, trailer and proxy blocks as stored: read at open.
+    pub resident_stored_bytes: u64,
+    /// The proxies decoded in memory.
+    pub proxy_raw_bytes: u64,
+    /// Treelet and triangle blocks as stored: read on demand.
+    pub streamed_bytes: u64,
+}
+
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct TreeStats {
+    pub depth: u32,
+    pub lod_levels: u32,
+    pub treelets: u64,
+    pub basic_nodes: u64,
+    pub lod_nodes: u64,
+    pub leaves: u64,
+    pub leaf_triangle_refs: u64,
+    pub avg_triangles_per_leaf: f64,
+    pub triangles: u64,
+    pub bytes_per_triangle: f64,
+}
+
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Summary {
+    pub file: String,
+    pub file_length: u64,
+    pub version: String,
+    pub block_size: u32,
+    pub incompatible_features: u64,
+    pub compatible_features: u64,
+    pub feature_names: Vec<String>,
+    pub identity: String,
+    pub block_count: u32,
+    pub levels: Vec<LevelRow>,
+    pub residency: Residency,
+    pub tree: TreeStats,
+    pub metadata: Metadata,
+}
+
+/// Summarises a file: reads and decodes every treelet block (triangle and proxy rows come from
+/// the directory), so its cost is that of the tree, not of the triangles.
+pub fn summarize(reader: &Reader) -> Result<Summary> {
+    let mut rows: BTreeMap<(u8, u16), LevelRow> = BTreeMap::new();
+    let mut leaf_refs = 0u64;
+    for (id, e) in (0u32..).zip(reader.entries()) {
+        let key = match e.kind {
+            BlockKind::Treelet => (0, e.level),
+            BlockKind::Triangle => (1, 0),
+            BlockKind::Proxy => (2, 0),
+        };
+        let row = rows.entry(key).or_default();
+        row.blocks += 1;
+        row.raw_bytes += u64::from(e.raw_length);
+        row.stored_bytes += u64::from(e.stored_length);
+        *row.codecs.entry(e.codec.name().to_string()).or_default() += 1;
+        match e.kind {
+            BlockKind::Treelet => {
+                let block = reader.read_block(id)?;
+                let facts = survey_block(e, &block.data, None).map_err(|err| err.in_block(id).in_file(reader.name()))?;
+                if let BlockFacts::Treelet { nodes, leaf_triangle_refs } = facts {
+                    row.treelets += nodes.treelets;
+                    row.basic_nodes += nodes.basic_nodes;
+                    row.lod_nodes += nodes.lod_nodes;
+                    row.leaves += nodes.leaves;
+                    row.voxels_single += nodes.voxels_single;
+                    row.voxels_six += nodes.voxels_six;
+                    leaf_refs += leaf_triangle_refs;
+                }
+            }
+            BlockKind::Triangle => row.triangles += u64::from(e.item_count),
+            BlockKind::Proxy => row.proxies += u64::from(e.item_count),
+        }
+    }
+    let levels: Vec<LevelRow> = rows
+        .into_iter()
+        .map(|((k, level), mut row)| {
+            row.level = match k {
+                0 => level.to_string(),
+                1 => "triangles".to_string(),
+                _ => "proxies".to_string(),
+            };
+            row.ratio = if row.stored_bytes == 0 { 0.0 } else { row.raw_bytes as f64 / row.stored_bytes as f64 };
+            row
+        })
+        .collect();
+    Ok(build_summary(reader, levels, leaf_refs))
+}
+
+fn build_summary(reader: &Reader, levels: Vec<LevelRow>, leaf_refs: u64) -> Summary {
+    let h = reader.header();
+    let m = reader.metadata();
+    let sum = |f: fn(&LevelRow) -> u64| levels.iter().map(f).sum::<u64>();
+    let tree_rows = levels.iter().filter(|r| r.level.parse::<u16>().is_ok());
+    let proxy_stored: u64 = levels.iter().filter(|r| r.level == "proxies").map(|r| r.stored_bytes).sum();
+    let proxy_raw: u64 = levels.iter().filter(|r| r.level == "proxies").map(|r| r.raw_bytes).sum();
+    let blocks_stored = sum(|r| r.stored_bytes);
+    let leaves = sum(|r| r.leaves);
+    let triangles = m.counts.triangles;
+    let mut feature_names = Vec::new();
+    if h.compatible_features & COMPAT_PROXIES != 0 {
+        feature_names.push("PROXIES".to_string());
+    }
+    if h.compatible_features & COMPAT_LOD_VOXELS != 0 {
+        feature_names.push("LOD_VOXELS".to_string());
+    }
+    Summary {
+        file: reader.name().to_string(),
+        file_length: reader.file_len(),
+        version: format!("{}.{}", h.major, h.minor),
+        block_size: h.block_size(),
+        incompatible_features: h.incompatible_features,
+        compatible_features: h.compatible_features,
+        feature_names,
+        identity: format!("{:08x}", reader.identity()),
+        block_count: h.sections.block_count,
+        residency: Residency {
+            resident_stored_bytes: reader.file_len() - blocks_stored + proxy_stored,
+            proxy_raw_bytes: proxy_raw,
+            streamed_bytes: blocks_stored - proxy_stored,
+        },
+        tree: TreeStats {
+            depth: m.counts.depth,
+            lod_levels: tree_rows.count() as u32,
+            treelets: sum(|r| r.treelets),
+            basic_nodes: sum(|r| r.basic_nodes),
+            lod_nodes: sum(|r| r.lod_nodes),
+            leaves,
+            leaf_triangle_refs: leaf_refs,
+            avg_triangles_per_leaf: if leaves == 0 { 0.0 } else { leaf_refs as f64 / leaves as f64 },
+            triangles,
+            bytes_per_triangle: if triangles == 0 { 0.0 } else { reader.file_len() as f64 / triangles as f64 },
+        },
+        levels,
+        metadata: m.clone(),
+    }
+}

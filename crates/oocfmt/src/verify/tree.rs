@@ -1,0 +1,260 @@
+//! Deep verification: the meaning of the tree. Walks every treelet from the root with the cell,
+//! depth and ancestor LOD radius it inherits, and checks every reference.
+
+use std::collections::{HashMap, HashSet};
+
+use super::{Index, Verifier};
+use crate::directory::{BlockEntry, BlockKind};
+use crate::error::{Code, Result};
+use crate::header::{COMPAT_LOD_VOXELS, COMPAT_PROXIES};
+use crate::metadata::{Counts, TreeletRef};
+use crate::reader::{read_block_data, ReadOptions};
+use crate::records::{Node, TreeletBlock, MAX_TREE_DEPTH as MAX_DEPTH, NO_PROXY};
+use crate::summary::BlockFacts;
+
+
+/// What a treelet root inherits from its parent LOD node.
+#[derive(Clone, Copy)]
+struct Inherit {
+    cell: [[f64; 3]; 2],
+    depth: u32,
+    max_radius: f32,
+}
+
+struct Walk<'a> {
+    entries: &'a [Option<BlockEntry>],
+    facts: &'a [Option<BlockFacts>],
+    proxy_blocks: Vec<u32>,
+    pending: HashMap<TreeletRef, Inherit>,
+    reached: HashSet<TreeletRef>,
+    counts: Counts,
+}
+
+pub(super) fn check(v: &mut Verifier<'_>, index: &Index, facts: &[Option<BlockFacts>]) -> Result<()> {
+    let Some(meta) = &index.metadata else { return Ok(()) };
+    let proxy_blocks = facts
+        .iter()
+        .flat_map(|f| match f {
+            Some(BlockFacts::Proxy { node_blocks }) => node_blocks.clone(),
+            _ => Vec::new(),
+        })
+        .collect();
+    let mut w = Walk { entries: &index.entries, facts, proxy_blocks, pending: HashMap::new(), reached: HashSet::new(), counts: Counts::default() };
+    match meta.root {
+        None if index.entries.is_empty() => v.note_code(Code::TreeEmpty, "the file holds no geometry".into(), None),
+        None => v.note_code(Code::TreeRoot, "blocks but no root".into(), None),
+        Some(root) => {
+            let ok = matches!(w.entry(root.block), Some(e) if e.kind == BlockKind::Treelet && e.level == 0 && root.treelet < e.item_count);
+            if !ok {
+                v.note_code(Code::TreeRoot, format!("root {root:?} is not a treelet of a level-0 treelet block"), None);
+            } else {
+                let cell = [meta.scene.bounds_min.map(f64::from), meta.scene.bounds_max.map(f64::from)];
+                w.pending.insert(root, Inherit { cell, depth: 0, max_radius: f32::INFINITY });
+            }
+        }
+    }
+    let ropts = ReadOptions { limits: v.opts.limits, checksums: v.opts.checksums };
+    for (id, e) in (0u32..).zip(&index.entries) {
+        let Some(e) = (*e).filter(|e| e.kind == BlockKind::Treelet) else { continue };
+        if !matches!(facts.get(id as usize), Some(Some(_))) {
+            continue; // already reported by the block pass
+        }
+        let raw = match read_block_data(v.src, &e, &ropts) {
+            Ok(r) => r,
+            Err(err) => {
+                v.note(err.in_block(id))?;
+                continue;
+            }
+        };
+        let Ok(block) = TreeletBlock::parse(&raw) else { continue };
+        w.block(v, id, &e, &block);
+    }
+    w.totals(v, index);
+    Ok(())
+}
+
+impl Walk<'_> {
+    fn entry(&self, id: u32) -> Option<BlockEntry> {
+        self.entries.get(id as usize).copied().flatten()
+    }
+
+    fn block(&mut self, v: &mut Verifier<'_>, id: u32, e: &BlockEntry, block: &TreeletBlock<'_>) {
+        self.counts.lod_levels = self.counts.lod_levels.max(u32::from(e.level) + 1);
+        for t in 0..block.treelet_count() {
+            let key = TreeletRef { block: id, treelet: t as u32 };
+            let Some(inh) = self.pending.remove(&key) else {
+                if !self.reached.contains(&key) {
+                    v.note_code(Code::TreeUnreachable, format!("treelet {t} is not reached from the root"), Some(id));
+                }
+                continue;
+            };
+            self.reached.insert(key);
+            if let Ok(span) = block.treelet_span(t) {
+                self.treelet(v, id, e, block, span.start, inh);
+            }
+        }
+    }
+
+    fn treelet(&mut self, v: &mut Verifier<'_>, id: u32, e: &BlockEntry, block: &TreeletBlock<'_>, root: usize, inh: Inherit) {
+        let mut stack = vec![(root, inh.cell, inh.depth + 1)];
+        while let Some((pos, cell, depth)) = stack.pop() {
+            if depth > MAX_DEPTH {
+                v.note_code(Code::TreeDepth, format!("node at {pos} is at depth {depth}, over {MAX_DEPTH}"), Some(id));
+                continue;
+            }
+            self.counts.depth = self.counts.depth.max(depth);
+            let Ok(node) = block.node(pos) else { continue };
+            match node {
+                Node::Basic { axis, split, left, right } => {
+                    self.counts.basic_nodes += 1;
+                    let (lc, rc) = split_cell(v, id, pos, cell, axis, split);
+                    if right != 0 {
+                        stack.push((TreeletBlock::child_pos(pos, right), rc, depth + 1));
+                    }
+                    if left != 0 {
+                        stack.push((TreeletBlock::child_pos(pos, left), lc, depth + 1));
+                    }
+                }
+                Node::Lod { axis, split, radius, left_present, right_present, child_treelet, child_block, voxel_offset, proxy } => {
+                    self.counts.lod_nodes += 1;
+                    if let Ok(vox) = block.voxel(voxel_offset) {
+                        match vox {
+                            crate::records::Voxel::Single(_) => self.counts.voxels_single += 1,
+                            crate::records::Voxel::Six(_) => self.counts.voxels_six += 1,
+                        }
+                    }
+                    self.lod_radius(v, id, pos, cell, radius, inh.max_radius);
+                    let (lc, rc) = split_cell(v, id, pos, cell, axis, split);
+                    let children = [(left_present, lc), (right_present, rc)];
+                    self.lod_children(v, id, e, pos, child_block, child_treelet, children, depth, radius);
+                    self.proxy(v, id, pos, proxy);
+                }
+                Node::Leaf { count, first, block: tb } => {
+                    self.counts.leaves += 1;
+                    let list = match (self.entry(tb), self.facts.get(tb as usize)) {
+                        (Some(te), Some(Some(BlockFacts::Triangle { list, .. }))) if te.kind == BlockKind::Triangle => Some(*list),
+                        _ => None,
+                    };
+                    match list {
+                        Some(l) if u32::from(first) + u32::from(count) <= l => {}
+                        Some(l) => v.note_code(Code::TreeReference, format!("leaf at {pos}: entries {first}+{count} pass the {l} of triangle block {tb}"), Some(id)),
+                        None => v.note_code(Code::TreeReference, format!("leaf at {pos}: block {tb} is not a valid triangle block"), Some(id)),
+                    }
+                }
+            }
+        }
+    }
+
+    fn lod_radius(&self, v: &mut Verifier<'_>, id: u32, pos: usize, cell: [[f64; 3]; 2], radius: f32, ancestor: f32) {
+        if radius > ancestor {
+            v.note_code(Code::TreeLodRadius, format!("LOD node at {pos}: radius {radius} exceeds its ancestor's {ancestor}"), Some(id));
+        }
+        let half_diag = (0..3).map(|a| (cell[1][a] - cell[0][a]).powi(2)).sum::<f64>().sqrt() / 2.0;
+        if f64::from(radius) < half_diag * (1.0 - 1e-6) {
+            v.note_code(Code::TreeLodRadius, format!("LOD node at {pos}: radius {radius} is below its cell's half diagonal {half_diag}"), Some(id));
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn lod_children(&mut self, v: &mut Verifier<'_>, id: u32, e: &BlockEntry, pos: usize, child_block: u32, first: u32, children: [(bool, [[f64; 3]; 2]); 2], depth: u32, radius: f32) {
+        let Some(ce) = self.entry(child_block).filter(|c| c.kind == BlockKind::Treelet) else {
+            v.note_code(Code::TreeReference, format!("LOD node at {pos}: child block {child_block} is not a treelet block"), Some(id));
+            return;
+        };
+        if u32::from(ce.level) != u32::from(e.level) + 1 {
+            v.note_code(Code::TreeLevel, format!("LOD node at {pos}: child block {child_block} has level {}, not {}", ce.level, e.level + 1), Some(id));
+            return;
+        }
+        let mut index = first;
+        for (present, cell) in children {
+            if !present {
+                continue;
+            }
+            if index >= ce.item_count {
+                v.note_code(Code::TreeReference, format!("LOD node at {pos}: treelet {index} of block {child_block}, which has {}", ce.item_count), Some(id));
+                return;
+            }
+            let key = TreeletRef { block: child_block, treelet: index };
+            if self.reached.contains(&key) || self.pending.insert(key, Inherit { cell, depth, max_radius: radius }).is_some() {
+                v.note_code(Code::TreeShared, format!("LOD node at {pos}: treelet {index} of block {child_block} is reached twice"), Some(id));
+            }
+            index += 1;
+        }
+    }
+
+    fn proxy(&self, v: &mut Verifier<'_>, id: u32, pos: usize, proxy: u32) {
+        if proxy == NO_PROXY {
+            return;
+        }
+        match self.proxy_blocks.get(proxy as usize) {
+            Some(&b) if b == id => {}
+            Some(&b) => v.note_code(Code::TreeReference, format!("LOD node at {pos}: proxy {proxy} stands for block {b}, not this one"), Some(id)),
+            None => v.note_code(Code::TreeReference, format!("LOD node at {pos}: proxy {proxy} of {}", self.proxy_blocks.len()), Some(id)),
+        }
+    }
+
+    /// Compares what the walk counted with the metadata, the schema and the feature bits.
+    fn totals(&mut self, v: &mut Verifier<'_>, index: &Index) {
+        let Some(meta) = &index.metadata else { return };
+        let mut c = self.counts;
+        c.treelets = self.reached.len() as u64;
+        c.proxies = self.proxy_blocks.len() as u64;
+        let mut max_material: Option<u16> = None;
+        for (id, f) in (0u32..).zip(self.facts) {
+            if let Some(BlockFacts::Triangle { triangles, vertices, primaries, max_material: mm, .. }) = f {
+                c.triangles += u64::from(*primaries);
+                c.triangle_records += u64::from(*triangles);
+                c.vertices += u64::from(*vertices);
+                if let Some(m) = *mm {
+                    if usize::from(m) >= meta.materials.len() {
+                        v.note_code(Code::TreeMaterial, format!("material {m} of {}", meta.materials.len()), Some(id));
+                    }
+                    max_material = max_material.max(Some(m));
+                }
+            }
+        }
+        let m = meta.counts;
+        let fields: [(&str, u64, u64); 12] = [
+            ("triangles", m.triangles, c.triangles),
+            ("triangle_records", m.triangle_records, c.triangle_records),
+            ("vertices", m.vertices, c.vertices),
+            ("basic_nodes", m.basic_nodes, c.basic_nodes),
+            ("lod_nodes", m.lod_nodes, c.lod_nodes),
+            ("leaves", m.leaves, c.leaves),
+            ("voxels_single", m.voxels_single, c.voxels_single),
+            ("voxels_six", m.voxels_six, c.voxels_six),
+            ("proxies", m.proxies, c.proxies),
+            ("treelets", m.treelets, c.treelets),
+            ("depth", u64::from(m.depth), u64::from(c.depth)),
+            ("lod_levels", u64::from(m.lod_levels), u64::from(c.lod_levels)),
+        ];
+        for (name, said, found) in fields {
+            if said != found {
+                v.note_code(Code::TreeCounts, format!("metadata counts.{name} = {said}, the tree has {found}"), None);
+            }
+        }
+        if meta.schema.six_sample_voxels != (c.voxels_six > 0) {
+            v.note_code(Code::TreeCounts, format!("schema.six_sample_voxels = {}, the tree has {} six-sample voxels", meta.schema.six_sample_voxels, c.voxels_six), None);
+        }
+        let features = index.header.compatible_features;
+        let has_proxy_blocks = index.entries.iter().flatten().any(|e| e.kind == BlockKind::Proxy);
+        if (features & COMPAT_PROXIES != 0) != has_proxy_blocks || (features & COMPAT_LOD_VOXELS != 0) != (c.lod_nodes > 0) {
+            v.note_code(Code::HeaderFeatureMismatch, format!("compatible features {features:#x} do not match the content"), None);
+        }
+    }
+}
+
+/// The two child cells of a split; reports a split plane outside the cell.
+fn split_cell(v: &mut Verifier<'_>, id: u32, pos: usize, cell: [[f64; 3]; 2], axis: u8, split: f32) -> ([[f64; 3]; 2], [[f64; 3]; 2]) {
+    let a = usize::from(axis.min(2));
+    let s = f64::from(split);
+    if !(cell[0][a] <= s && s <= cell[1][a]) {
+        v.note_code(Code::TreeSplit, format!("node at {pos}: split {split} on axis {a} outside the cell {}..{}", cell[0][a], cell[1][a]), Some(id));
+    }
+    // max/min rather than clamp: they cannot panic, whatever the bounds hold.
+    let s = s.max(cell[0][a]).min(cell[1][a]);
+    let (mut l, mut r) = (cell, cell);
+    l[1][a] = s;
+    r[0][a] = s;
+    (l, r)
+}

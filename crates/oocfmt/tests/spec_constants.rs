@@ -1,0 +1,141 @@
+//! Cross-checks spec/oocfmt.md against the code: every field-table offset and size, every magic,
+//! every issue code. If this fails, the spec and the code disagree; fix whichever is wrong.
+
+use std::collections::BTreeSet;
+
+use oocfmt::{directory, header, trailer, Code, Severity};
+
+fn spec() -> String {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec/oocfmt.md");
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+/// The rows `| offset | size | type | field | ...` of the table under `heading`.
+fn table(spec: &str, heading: &str) -> Vec<(usize, usize, String)> {
+    let start = spec.find(heading).unwrap_or_else(|| panic!("no section {heading}"));
+    let mut rows = Vec::new();
+    let mut seen_table = false;
+    for line in spec[start..].lines().skip(1) {
+        if line.starts_with("## ") {
+            break;
+        }
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        if cells.len() < 5 {
+            if seen_table && !line.starts_with('|') {
+                break;
+            }
+            continue;
+        }
+        seen_table = true;
+        if let (Ok(off), Ok(size)) = (cells[1].parse::<usize>(), cells[2].parse::<usize>()) {
+            rows.push((off, size, cells[4].to_string()));
+        }
+    }
+    rows
+}
+
+fn check_contiguous(rows: &[(usize, usize, String)], total: usize, what: &str) {
+    let mut at = 0;
+    for (off, size, name) in rows {
+        assert_eq!(*off, at, "{what}: field {name} at {off}, expected {at}");
+        at += size;
+    }
+    assert_eq!(at, total, "{what}: fields add up to {at}, the code says {total}");
+}
+
+#[test]
+fn header_table_matches_the_code() {
+    let rows = table(&spec(), "## 3. Header");
+    check_contiguous(&rows, header::HEADER_LEN, "header");
+    let want = [
+        ("magic", header::OFF_MAGIC),
+        ("major", header::OFF_MAJOR),
+        ("minor", header::OFF_MINOR),
+        ("block_size_log2", header::OFF_BLOCK_SIZE_LOG2),
+        ("incompatible_features", header::OFF_INCOMPAT),
+        ("compatible_features", header::OFF_COMPAT),
+        ("directory_offset", header::OFF_DIRECTORY_OFFSET),
+        ("block_count", header::OFF_BLOCK_COUNT),
+        ("metadata_length", header::OFF_METADATA_LENGTH),
+        ("metadata_offset", header::OFF_METADATA_OFFSET),
+        ("header_crc", header::OFF_HEADER_CRC),
+    ];
+    for (name, off) in want {
+        assert!(rows.iter().any(|(o, _, n)| n == name && *o == off), "header field {name} is not at {off} in the spec");
+    }
+}
+
+#[test]
+fn trailer_table_matches_the_code() {
+    let rows = table(&spec(), "## 10. Trailer");
+    check_contiguous(&rows, trailer::TRAILER_LEN, "trailer");
+    for (name, off) in [
+        ("directory_crc", trailer::OFF_DIRECTORY_CRC),
+        ("metadata_crc", trailer::OFF_METADATA_CRC),
+        ("root_checksum", trailer::OFF_ROOT_CHECKSUM),
+        ("trailer_crc", trailer::OFF_TRAILER_CRC),
+    ] {
+        assert!(rows.iter().any(|(o, _, n)| n == name && *o == off), "trailer field {name} is not at {off} in the spec");
+    }
+}
+
+#[test]
+fn directory_table_matches_the_code() {
+    let rows = table(&spec(), "## 4. Blocks and the directory");
+    check_contiguous(&rows, directory::ENTRY_LEN, "directory entry");
+    for (name, off) in [
+        ("offset", directory::OFF_OFFSET),
+        ("stored_length", directory::OFF_STORED_LENGTH),
+        ("raw_length", directory::OFF_RAW_LENGTH),
+        ("crc", directory::OFF_CRC),
+        ("kind", directory::OFF_KIND),
+        ("codec", directory::OFF_CODEC),
+        ("level", directory::OFF_LEVEL),
+        ("item_count", directory::OFF_ITEM_COUNT),
+    ] {
+        assert!(rows.iter().any(|(o, _, n)| n == name && *o == off), "entry field {name} is not at {off} in the spec");
+    }
+}
+
+#[test]
+fn magics_match_the_code() {
+    let s = spec();
+    let hex = |b: &[u8]| b.iter().map(|x| format!("{x:02X}")).collect::<Vec<_>>().join(" ");
+    assert!(s.contains(&format!("`{}`", hex(&header::MAGIC))), "header magic");
+    assert!(s.contains(&format!("`{}`", hex(&trailer::END_MAGIC))), "end magic");
+}
+
+#[test]
+fn issue_codes_match_the_code() {
+    let s = spec();
+    let start = s.find("## 13.").unwrap_or(0);
+    let mut in_spec = BTreeSet::new();
+    for line in s[start..].lines().filter(|l| l.starts_with("| `")) {
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        let code = cells[1].trim_matches('`').to_string();
+        let sev = cells[2].to_string();
+        in_spec.insert((code, sev));
+    }
+    let in_code: BTreeSet<(String, String)> = Code::ALL
+        .iter()
+        .map(|c| {
+            let sev = match c.severity() {
+                Severity::Error => "error",
+                Severity::Warning => "warning",
+                Severity::Info => "info",
+            };
+            (c.as_str().to_string(), sev.to_string())
+        })
+        .collect();
+    assert_eq!(in_spec, in_code, "spec §13 and Code::ALL disagree");
+}
+
+#[test]
+fn record_sizes_match_the_spec() {
+    use oocfmt::records::{NODE_BASIC_LEN, NODE_LEAF_LEN, NODE_LOD_LEN, PROXY_LEN};
+    let s = spec();
+    assert!(s.contains(&format!("Basic node (type 0), {NODE_BASIC_LEN} bytes")));
+    assert!(s.contains(&format!("LOD node (type 1), {NODE_LOD_LEN} bytes")));
+    assert!(s.contains(&format!("Leaf node (type 2), {NODE_LEAF_LEN} bytes")));
+    assert!(s.contains(&format!("records of {PROXY_LEN} bytes")));
+}
