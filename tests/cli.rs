@@ -5,7 +5,11 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn oocfmt(args: &[&str], cwd: &Path) -> Output {
-    match Command::new(env!("CARGO_BIN_EXE_oocfmt")).args(args).current_dir(cwd).output() {
+    match Command::new(env!("CARGO_BIN_EXE_oocfmt"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+    {
         Ok(o) => o,
         Err(e) => panic!("cannot run oocfmt: {e}"),
     }
@@ -17,7 +21,12 @@ fn vectors_dir() -> PathBuf {
 
 fn vectors() -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(vectors_dir())
-        .map(|d| d.flatten().map(|e| e.file_name().to_string_lossy().into_owned()).filter(|n| n.ends_with(".oocf")).collect())
+        .map(|d| {
+            d.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.ends_with(".oocf"))
+                .collect()
+        })
         .unwrap_or_default();
     v.sort();
     v
@@ -35,8 +44,14 @@ fn golden(expected: &Path, actual: &str) {
         }
         return;
     }
-    let want = std::fs::read_to_string(expected).unwrap_or_else(|e| panic!("{}: {e} (run with OOCFMT_BLESS=1)", expected.display()));
-    assert_eq!(actual, want, "{} differs from the output", expected.display());
+    let want = std::fs::read_to_string(expected)
+        .unwrap_or_else(|e| panic!("{}: {e} (run with OOCFMT_BLESS=1)", expected.display()));
+    assert_eq!(
+        actual,
+        want,
+        "{} differs from the output",
+        expected.display()
+    );
 }
 
 fn stdout(o: &Output) -> String {
@@ -46,8 +61,16 @@ fn stdout(o: &Output) -> String {
 #[test]
 fn the_spec_vectors_exist() {
     let v = vectors();
-    for name in ["quad.oocf", "lod-none.oocf", "lod-lz4.oocf", "lod-zstd.oocf"] {
-        assert!(v.iter().any(|n| n == name), "spec/vectors/{name} is missing");
+    for name in [
+        "quad.oocf",
+        "lod-none.oocf",
+        "lod-lz4.oocf",
+        "lod-zstd.oocf",
+    ] {
+        assert!(
+            v.iter().any(|n| n == name),
+            "spec/vectors/{name} is missing"
+        );
     }
 }
 
@@ -56,8 +79,16 @@ fn inspect_json_of_every_vector_matches_its_expected_output() {
     let dir = vectors_dir();
     for name in vectors() {
         let o = oocfmt(&["inspect", "--json", &name], &dir);
-        assert_eq!(o.status.code(), Some(0), "{name}: {}", String::from_utf8_lossy(&o.stderr));
-        golden(&dir.join(name.replace(".oocf", ".inspect.json")), &stdout(&o));
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        golden(
+            &dir.join(name.replace(".oocf", ".inspect.json")),
+            &stdout(&o),
+        );
     }
 }
 
@@ -65,7 +96,12 @@ fn inspect_json_of_every_vector_matches_its_expected_output() {
 fn the_worked_example_dump_matches_the_spec_file() {
     let dir = vectors_dir();
     let o = oocfmt(&["inspect", "--hexdump", "quad.oocf"], &dir);
-    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let text = format!("# Annotated dump of `spec/vectors/quad.oocf`\n\nProduced by `oocfmt inspect --hexdump quad.oocf`; a test keeps it current.\n\n```text{}```\n", stdout(&o));
     golden(&dir.join("quad.hex.md"), &text);
 }
@@ -108,9 +144,22 @@ fn a_flipped_bit_is_reported_with_exit_1_and_a_code() {
 #[test]
 fn usage_and_io_errors_exit_2() {
     let dir = vectors_dir();
-    assert_eq!(oocfmt(&["verify", "no-such-file.oocf"], &dir).status.code(), Some(2));
-    assert_eq!(oocfmt(&["verify", "--quick", "--deep", "quad.oocf"], &dir).status.code(), Some(2));
-    assert_eq!(oocfmt(&["inspect", "--block", "999", "quad.oocf"], &dir).status.code(), Some(2));
+    assert_eq!(
+        oocfmt(&["verify", "no-such-file.oocf"], &dir).status.code(),
+        Some(2)
+    );
+    assert_eq!(
+        oocfmt(&["verify", "--quick", "--deep", "quad.oocf"], &dir)
+            .status
+            .code(),
+        Some(2)
+    );
+    assert_eq!(
+        oocfmt(&["inspect", "--block", "999", "quad.oocf"], &dir)
+            .status
+            .code(),
+        Some(2)
+    );
     assert_eq!(oocfmt(&["frobnicate"], &dir).status.code(), Some(2));
     assert_eq!(oocfmt(&["--help"], &dir).status.code(), Some(0));
 }
@@ -120,12 +169,20 @@ fn inspect_block_decodes_every_block_of_every_vector() {
     let dir = vectors_dir();
     for name in vectors() {
         for id in 0.. {
-            let o = oocfmt(&["inspect", "--json", "--block", &id.to_string(), &name], &dir);
+            let o = oocfmt(
+                &["inspect", "--json", "--block", &id.to_string(), &name],
+                &dir,
+            );
             if o.status.code() == Some(2) {
                 assert!(id > 0, "{name} has no block 0");
                 break;
             }
-            assert_eq!(o.status.code(), Some(0), "{name} block {id}: {}", String::from_utf8_lossy(&o.stderr));
+            assert_eq!(
+                o.status.code(),
+                Some(0),
+                "{name} block {id}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
             let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap_or_default();
             assert_eq!(v["id"], id);
         }
@@ -135,8 +192,17 @@ fn inspect_block_decodes_every_block_of_every_vector() {
 #[test]
 fn the_demo_builds_inspects_and_verifies() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-    let o = oocfmt(&["demo", "--triangles", "20000", "--out", "demo-out"], tmp.path());
-    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), String::from_utf8_lossy(&o.stderr));
+    let o = oocfmt(
+        &["demo", "--triangles", "20000", "--out", "demo-out"],
+        tmp.path(),
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}{}",
+        stdout(&o),
+        String::from_utf8_lossy(&o.stderr)
+    );
     let out = stdout(&o);
     assert!(out.contains("valid"), "{out}");
     assert!(tmp.path().join("demo-out/demo.oocf").is_file());

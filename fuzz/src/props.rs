@@ -24,11 +24,18 @@ use oocfmt::{header, trailer, BlockKind, Checksums, Codec, CodecId, ReadOptions,
 pub const MAX_RAW: usize = 1 << 20;
 
 fn read_opts() -> ReadOptions {
-    ReadOptions { checksums: Checksums::Skip, ..ReadOptions::default() }
+    ReadOptions {
+        checksums: Checksums::Skip,
+        ..ReadOptions::default()
+    }
 }
 
 fn verify_opts(depth: Depth) -> VerifyOptions {
-    VerifyOptions { depth, checksums: Checksums::Skip, ..VerifyOptions::default() }
+    VerifyOptions {
+        depth,
+        checksums: Checksums::Skip,
+        ..VerifyOptions::default()
+    }
 }
 
 /// `open_verify`: the bytes as a whole file, as given and re-sealed (every CRC but the blocks'
@@ -50,9 +57,17 @@ pub fn exercise_file(bytes: Vec<u8>) {
     let full = verify(&bytes, "fuzz", &verify_opts(Depth::Full), &|_| {});
     let deep = verify(&bytes, "fuzz", &verify_opts(Depth::Deep), &|_| {});
     if let (Ok(full), Ok(deep)) = (&full, &deep) {
-        assert!(!deep.valid || full.valid, "deep verify is valid but full verify is not: {:?}", full.issues);
+        assert!(
+            !deep.valid || full.valid,
+            "deep verify is valid but full verify is not: {:?}",
+            full.issues
+        );
         match &read {
-            Ok(()) => assert!(full.valid, "the reader reads every block but verify says {:?}", full.issues),
+            Ok(()) => assert!(
+                full.valid,
+                "the reader reads every block but verify says {:?}",
+                full.issues
+            ),
             Err(e) => assert!(!full.valid, "verify says valid but the reader fails: {e}"),
         }
     }
@@ -61,7 +76,8 @@ pub fn exercise_file(bytes: Vec<u8>) {
 /// Everything a reader does with a file: open (which loads the proxies), read and decode every
 /// block by kind, walk every treelet block, check item counts, summarise.
 pub fn read_everything(bytes: &[u8]) -> Result<(), String> {
-    let reader = Reader::from_source(Box::new(bytes.to_vec()), Arc::from("fuzz"), read_opts()).map_err(|e| e.to_string())?;
+    let reader = Reader::from_source(Box::new(bytes.to_vec()), Arc::from("fuzz"), read_opts())
+        .map_err(|e| e.to_string())?;
     let attrs = reader.metadata().schema.triangle_attributes();
     let _ = reader.proxies().len();
     for id in 0..reader.header().sections.block_count {
@@ -69,7 +85,9 @@ pub fn read_everything(bytes: &[u8]) -> Result<(), String> {
         let items = match block.entry.kind {
             BlockKind::Treelet => {
                 let t = block.treelets().map_err(|e| e.to_string())?;
-                t.walk(|_, _, n| n.check()).map_err(|e| e.to_string())?.treelets
+                t.walk(|_, _, n| n.check())
+                    .map_err(|e| e.to_string())?
+                    .treelets
             }
             BlockKind::Triangle => {
                 let t = block.triangles(attrs).map_err(|e| e.to_string())?;
@@ -79,7 +97,10 @@ pub fn read_everything(bytes: &[u8]) -> Result<(), String> {
             BlockKind::Proxy => block.proxies().map_err(|e| e.to_string())?.len() as u64,
         };
         if items != u64::from(block.entry.item_count) {
-            return Err(format!("block {id}: {items} items, the directory says {}", block.entry.item_count));
+            return Err(format!(
+                "block {id}: {items} items, the directory says {}",
+                block.entry.item_count
+            ));
         }
     }
     oocfmt::summary::summarize(&reader).map_err(|e| e.to_string())?;
@@ -91,9 +112,16 @@ pub fn read_everything(bytes: &[u8]) -> Result<(), String> {
 /// at 1 MiB); the rest are the stored bytes. Decodes with `decode_into`, then surveys the block.
 /// A successful decode must re-encode and decode to the same bytes.
 pub fn block_decode(data: &[u8]) {
-    let Some((&sel, rest)) = data.split_first() else { return };
-    let Some((len_bytes, stored)) = rest.split_at_checked(3) else { return };
-    let raw_len = (usize::from(len_bytes[0]) | usize::from(len_bytes[1]) << 8 | usize::from(len_bytes[2]) << 16).min(MAX_RAW);
+    let Some((&sel, rest)) = data.split_first() else {
+        return;
+    };
+    let Some((len_bytes, stored)) = rest.split_at_checked(3) else {
+        return;
+    };
+    let raw_len = (usize::from(len_bytes[0])
+        | usize::from(len_bytes[1]) << 8
+        | usize::from(len_bytes[2]) << 16)
+        .min(MAX_RAW);
     let codec = match sel & 3 {
         1 => CodecId::Lz4,
         2 => CodecId::Zstd,
@@ -120,10 +148,15 @@ pub fn block_decode(data: &[u8]) {
     if let Ok((id, again)) = codec_setting.encode(&raw) {
         assert!(again.len() <= raw.len(), "encode grew the block");
         let mut back = vec![0u8; raw.len()];
-        assert!(decode_into(id, &again, &mut back).is_ok(), "re-encoded block does not decode");
+        assert!(
+            decode_into(id, &again, &mut back).is_ok(),
+            "re-encoded block does not decode"
+        );
         assert_eq!(back, raw, "re-encoded block decodes to other bytes");
     }
-    let Ok(raw_length) = u32::try_from(raw.len()) else { return };
+    let Ok(raw_length) = u32::try_from(raw.len()) else {
+        return;
+    };
     let item_count = match kind {
         BlockKind::Proxy => raw_length / 80,
         _ => 1,
@@ -151,21 +184,30 @@ pub fn block_decode(data: &[u8]) {
 /// `treelet_decode`: parse a treelet block, walk it, and decode every node and voxel the walk
 /// reaches through the accessors as well.
 pub fn treelet_decode(data: &[u8]) {
-    let Ok(block) = TreeletBlock::parse(data) else { return };
+    let Ok(block) = TreeletBlock::parse(data) else {
+        return;
+    };
     let mut seen = Vec::new();
     let walked = block.walk(|t, pos, n| {
         seen.push((t, pos, *n));
         n.check()
     });
     for &(_, pos, node) in &seen {
-        assert_eq!(block.node(pos).ok(), Some(node), "node at {pos} decodes differently on its own");
+        assert_eq!(
+            block.node(pos).ok(),
+            Some(node),
+            "node at {pos} decodes differently on its own"
+        );
         if let Node::Lod { voxel_offset, .. } = node {
             if let Ok(v) = block.voxel(voxel_offset) {
                 for face in 0..6 {
                     let s = v.face(face);
                     if s.check().is_ok() {
                         let n = s.normal();
-                        assert!(n.iter().all(|c| c.is_finite()), "normal of a checked sample is not finite");
+                        assert!(
+                            n.iter().all(|c| c.is_finite()),
+                            "normal of a checked sample is not finite"
+                        );
                         let _ = s.colour();
                     }
                 }
@@ -174,7 +216,10 @@ pub fn treelet_decode(data: &[u8]) {
     }
     if let Ok(sum) = walked {
         assert_eq!(sum.treelets, block.treelet_count() as u64);
-        assert_eq!(sum.basic_nodes + sum.lod_nodes + sum.leaves, seen.len() as u64);
+        assert_eq!(
+            sum.basic_nodes + sum.lod_nodes + sum.leaves,
+            seen.len() as u64
+        );
         assert_eq!(sum.voxels_single + sum.voxels_six, sum.lod_nodes);
     }
     for t in 0..=block.treelet_count() {
@@ -188,15 +233,27 @@ pub fn treelet_decode(data: &[u8]) {
 /// `triangle_decode`: parse a triangle block without a schema, check its contents, and call
 /// every accessor on every index (and one past the end).
 pub fn triangle_decode(data: &[u8]) {
-    let Ok(block) = TriangleBlock::parse(data, None) else { return };
-    assert!(TriangleBlock::parse(data, Some(block.attributes())).is_ok(), "parse with its own attributes fails");
+    let Ok(block) = TriangleBlock::parse(data, None) else {
+        return;
+    };
+    assert!(
+        TriangleBlock::parse(data, Some(block.attributes())).is_ok(),
+        "parse with its own attributes fails"
+    );
     let contents_ok = block.check_contents().is_ok();
-    let (l, t, w) = (block.list_count(), block.triangle_count(), block.vertex_count());
+    let (l, t, w) = (
+        block.list_count(),
+        block.triangle_count(),
+        block.vertex_count(),
+    );
     assert!(block.primary_count() <= t, "more primaries than triangles");
     for i in 0..=l {
         let e = block.list(i);
         if contents_ok && i < l {
-            assert!(e.as_ref().is_ok_and(|&e| usize::from(e) < t), "list entry {i} passed the check but is bad");
+            assert!(
+                e.as_ref().is_ok_and(|&e| usize::from(e) < t),
+                "list entry {i} passed the check but is bad"
+            );
         }
     }
     assert!(block.list(l).is_err(), "list entry past the end reads");
@@ -204,14 +261,20 @@ pub fn triangle_decode(data: &[u8]) {
         let tri = block.triangle(i);
         let pos = block.positions(i);
         if contents_ok && i < t {
-            assert!(tri.is_ok() && pos.is_ok(), "triangle {i} passed the check but does not read");
+            assert!(
+                tri.is_ok() && pos.is_ok(),
+                "triangle {i} passed the check but does not read"
+            );
         }
     }
     assert!(block.triangle(t).is_err(), "triangle past the end reads");
     for i in 0..=w {
         if let Ok(v) = block.vertex(i) {
             if contents_ok {
-                assert!(v.position.iter().all(|c| c.is_finite()), "vertex {i} passed the check but is not finite");
+                assert!(
+                    v.position.iter().all(|c| c.is_finite()),
+                    "vertex {i} passed the check but is not finite"
+                );
             }
             if let Some(n) = v.normal {
                 let _ = oct_decode(n);
@@ -222,11 +285,15 @@ pub fn triangle_decode(data: &[u8]) {
 }
 
 fn u32_at(b: &[u8], at: usize) -> Option<u32> {
-    Some(u32::from_le_bytes(b.get(at..at.checked_add(4)?)?.try_into().ok()?))
+    Some(u32::from_le_bytes(
+        b.get(at..at.checked_add(4)?)?.try_into().ok()?,
+    ))
 }
 
 fn u64_at(b: &[u8], at: usize) -> Option<u64> {
-    Some(u64::from_le_bytes(b.get(at..at.checked_add(8)?)?.try_into().ok()?))
+    Some(u64::from_le_bytes(
+        b.get(at..at.checked_add(8)?)?.try_into().ok()?,
+    ))
 }
 
 fn put_u32(b: &mut [u8], at: usize, v: u32) {
@@ -258,7 +325,8 @@ pub fn reseal(data: &[u8]) -> Option<Vec<u8>> {
     let count = u32_at(&f, header::OFF_BLOCK_COUNT)?;
     let meta_len = u32_at(&f, header::OFF_METADATA_LENGTH)?;
     let meta_off = u64_at(&f, header::OFF_METADATA_OFFSET)?;
-    let dir = region(&f, dir_off, u64::from(count) * directory::ENTRY_LEN as u64).map(<[u8]>::to_vec);
+    let dir =
+        region(&f, dir_off, u64::from(count) * directory::ENTRY_LEN as u64).map(<[u8]>::to_vec);
     let meta = region(&f, meta_off, u64::from(meta_len)).map(<[u8]>::to_vec);
     if let Some(d) = &dir {
         put_u32(&mut f, t + trailer::OFF_DIRECTORY_CRC, crc32c(d));
@@ -286,8 +354,16 @@ pub fn reseal_with_blocks(data: &[u8]) -> Option<Vec<u8>> {
     let dir_off = usize::try_from(u64_at(&f, header::OFF_DIRECTORY_OFFSET)?).ok()?;
     let count = u32_at(&f, header::OFF_BLOCK_COUNT)? as usize;
     for i in 0..count {
-        let Some(at) = i.checked_mul(directory::ENTRY_LEN).and_then(|x| x.checked_add(dir_off)) else { break };
-        let (Some(offset), Some(stored)) = (u64_at(&f, at + directory::OFF_OFFSET), u32_at(&f, at + directory::OFF_STORED_LENGTH)) else {
+        let Some(at) = i
+            .checked_mul(directory::ENTRY_LEN)
+            .and_then(|x| x.checked_add(dir_off))
+        else {
+            break;
+        };
+        let (Some(offset), Some(stored)) = (
+            u64_at(&f, at + directory::OFF_OFFSET),
+            u32_at(&f, at + directory::OFF_STORED_LENGTH),
+        ) else {
             break;
         };
         if let Some(bytes) = region(&f, offset, u64::from(stored)) {

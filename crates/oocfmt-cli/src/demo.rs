@@ -37,27 +37,55 @@ fn parse_codec(s: &str) -> Result<Codec, String> {
 }
 
 pub fn run(a: &Args) -> CliResult {
-    let write = WriteOptions { codec: a.codec, ..WriteOptions::default() }.with_block_size(a.block_size)?;
-    std::fs::create_dir_all(&a.out).map_err(|e| CliError::Io { path: a.out.display().to_string(), source: e })?;
+    let write = WriteOptions {
+        codec: a.codec,
+        ..WriteOptions::default()
+    }
+    .with_block_size(a.block_size)?;
+    std::fs::create_dir_all(&a.out).map_err(|e| CliError::Io {
+        path: a.out.display().to_string(),
+        source: e,
+    })?;
     let path = a.out.join("demo.oocf");
 
     let spin = progress::spinner("generating the demo scene");
     let t = Instant::now();
     let mesh = demo_scene(a.triangles as usize);
     spin.finish_and_clear();
-    println!("scene      {} triangles, {} vertices in {:.2} s", mesh.triangles.len(), mesh.positions.len(), t.elapsed().as_secs_f64());
+    println!(
+        "scene      {} triangles, {} vertices in {:.2} s",
+        mesh.triangles.len(),
+        mesh.positions.len(),
+        t.elapsed().as_secs_f64()
+    );
 
     let spin = progress::spinner("building the kd-tree");
     let t = Instant::now();
-    let tree = kdtree::build(&mesh, &KdBuildOptions { max_leaf_triangles: a.max_leaf, ..KdBuildOptions::default() })
-        .map_err(|e| CliError::Build(e.to_string()))?;
+    let tree = kdtree::build(
+        &mesh,
+        &KdBuildOptions {
+            max_leaf_triangles: a.max_leaf,
+            ..KdBuildOptions::default()
+        },
+    )
+    .map_err(|e| CliError::Build(e.to_string()))?;
     spin.finish_and_clear();
-    println!("kd-tree    {} nodes, depth {} in {:.2} s", tree.nodes().len(), tree.depth(), t.elapsed().as_secs_f64());
+    println!(
+        "kd-tree    {} nodes, depth {} in {:.2} s",
+        tree.nodes().len(),
+        tree.depth(),
+        t.elapsed().as_secs_f64()
+    );
 
     let spin = progress::spinner("laying out and writing the container");
     let t = Instant::now();
-    let opts = LayoutOptions { write, sources: vec!["built-in demo scene".to_string()], ..LayoutOptions::default() };
-    let (written, _) = write_container(&path, &mesh, &tree, &opts).map_err(|e| CliError::Build(e.to_string()))?;
+    let opts = LayoutOptions {
+        write,
+        sources: vec!["built-in demo scene".to_string()],
+        ..LayoutOptions::default()
+    };
+    let (written, _) =
+        write_container(&path, &mesh, &tree, &opts).map_err(|e| CliError::Build(e.to_string()))?;
     spin.finish_and_clear();
     let secs = t.elapsed().as_secs_f64();
     println!(
@@ -73,11 +101,19 @@ pub fn run(a: &Args) -> CliResult {
     print!("{}", inspect::render(&oocfmt::summary::summarize(&reader)?));
     println!();
 
-    let src = FileSource::open(&path).map_err(|e| CliError::Io { path: path.display().to_string(), source: e })?;
+    let src = FileSource::open(&path).map_err(|e| CliError::Io {
+        path: path.display().to_string(),
+        source: e,
+    })?;
     let bar = progress::bytes(written.file_length, "verify --deep", false);
     let t = Instant::now();
-    let opts = VerifyOptions { depth: Depth::Deep, ..VerifyOptions::default() };
-    let report = verify(&src, &path.display().to_string(), &opts, &|done| bar.set_position(done))?;
+    let opts = VerifyOptions {
+        depth: Depth::Deep,
+        ..VerifyOptions::default()
+    };
+    let report = verify(&src, &path.display().to_string(), &opts, &|done| {
+        bar.set_position(done)
+    })?;
     bar.finish_and_clear();
     let secs = t.elapsed().as_secs_f64();
     for issue in &report.issues {
@@ -90,6 +126,9 @@ pub fn run(a: &Args) -> CliResult {
         report.warnings,
         written.file_length as f64 / secs.max(1e-9) / 1e6
     );
-    println!("\nnext: oocfmt inspect {0} --block 0; oocfmt verify --deep {0}", path.display());
+    println!(
+        "\nnext: oocfmt inspect {0} --block 0; oocfmt verify --deep {0}",
+        path.display()
+    );
     Ok(if report.valid { 0 } else { 1 })
 }

@@ -17,10 +17,18 @@ const MAX_DUMP: u64 = 256 * 1024;
 pub fn annotate(path: &Path) -> Result<String, CliError> {
     let reader = Reader::open(path, ReadOptions::default())?;
     if reader.file_len() > MAX_DUMP {
-        return Err(CliError::Usage(format!("--hexdump is for files up to {MAX_DUMP} bytes; use --block for one block")));
+        return Err(CliError::Usage(format!(
+            "--hexdump is for files up to {MAX_DUMP} bytes; use --block for one block"
+        )));
     }
-    let bytes = std::fs::read(path).map_err(|e| CliError::Io { path: path.display().to_string(), source: e })?;
-    let mut d = Dump { o: String::new(), bytes: &bytes };
+    let bytes = std::fs::read(path).map_err(|e| CliError::Io {
+        path: path.display().to_string(),
+        source: e,
+    })?;
+    let mut d = Dump {
+        o: String::new(),
+        bytes: &bytes,
+    };
     let _ = writeln!(d.o, "{} ({} bytes)", path.display(), bytes.len());
     d.header();
     for (id, e) in (0u32..).zip(reader.entries()) {
@@ -63,16 +71,48 @@ impl Dump<'_> {
             (hdr::OFF_MAGIC, 8, "magic \\x89OCF\\r\\n\\x1a\\n".into()),
             (hdr::OFF_MAJOR, 2, format!("major version {}", h.major)),
             (hdr::OFF_MINOR, 2, format!("minor version {}", h.minor)),
-            (hdr::OFF_BLOCK_SIZE_LOG2, 1, format!("block size 2^{} = {}", h.block_size_log2, h.block_size())),
+            (
+                hdr::OFF_BLOCK_SIZE_LOG2,
+                1,
+                format!("block size 2^{} = {}", h.block_size_log2, h.block_size()),
+            ),
             (hdr::OFF_RESERVED_A, 3, "reserved".into()),
-            (hdr::OFF_INCOMPAT, 8, format!("incompatible features {:#x}", h.incompatible_features)),
-            (hdr::OFF_COMPAT, 8, format!("compatible features {:#x}", h.compatible_features)),
-            (hdr::OFF_DIRECTORY_OFFSET, 8, format!("directory offset {}", s.directory_offset)),
-            (hdr::OFF_BLOCK_COUNT, 4, format!("block count {}", s.block_count)),
-            (hdr::OFF_METADATA_LENGTH, 4, format!("metadata length {}", s.metadata_length)),
-            (hdr::OFF_METADATA_OFFSET, 8, format!("metadata offset {}", s.metadata_offset)),
+            (
+                hdr::OFF_INCOMPAT,
+                8,
+                format!("incompatible features {:#x}", h.incompatible_features),
+            ),
+            (
+                hdr::OFF_COMPAT,
+                8,
+                format!("compatible features {:#x}", h.compatible_features),
+            ),
+            (
+                hdr::OFF_DIRECTORY_OFFSET,
+                8,
+                format!("directory offset {}", s.directory_offset),
+            ),
+            (
+                hdr::OFF_BLOCK_COUNT,
+                4,
+                format!("block count {}", s.block_count),
+            ),
+            (
+                hdr::OFF_METADATA_LENGTH,
+                4,
+                format!("metadata length {}", s.metadata_length),
+            ),
+            (
+                hdr::OFF_METADATA_OFFSET,
+                8,
+                format!("metadata offset {}", s.metadata_offset),
+            ),
             (hdr::OFF_RESERVED_B, 4, "reserved".into()),
-            (hdr::OFF_HEADER_CRC, 4, "header CRC-32C of bytes 0..60".into()),
+            (
+                hdr::OFF_HEADER_CRC,
+                4,
+                "header CRC-32C of bytes 0..60".into(),
+            ),
         ];
         for (at, len, label) in rows {
             self.field(at, len, &label);
@@ -81,15 +121,27 @@ impl Dump<'_> {
 
     fn block(&mut self, reader: &Reader, id: u32, e: &oocfmt::BlockEntry) {
         let at = e.offset as usize;
-        self.title(&format!("block {id}: {} block, level {}, codec {}, {} stored bytes", e.kind.name(), e.level, e.codec.name(), e.stored_length));
+        self.title(&format!(
+            "block {id}: {} block, level {}, codec {}, {} stored bytes",
+            e.kind.name(),
+            e.level,
+            e.codec.name(),
+            e.stored_length
+        ));
         if e.codec != CodecId::None {
             self.field(at, e.stored_length as usize, "compressed bytes");
             return;
         }
-        let raw = self.bytes.get(at..at + e.stored_length as usize).unwrap_or(&[]).to_vec();
+        let raw = self
+            .bytes
+            .get(at..at + e.stored_length as usize)
+            .unwrap_or(&[])
+            .to_vec();
         match e.kind {
             BlockKind::Treelet => self.treelet_block(at, &raw),
-            BlockKind::Triangle => self.triangle_block(at, &raw, reader.metadata().schema.triangle_attributes()),
+            BlockKind::Triangle => {
+                self.triangle_block(at, &raw, reader.metadata().schema.triangle_attributes())
+            }
             BlockKind::Proxy => {
                 for i in 0..e.item_count as usize {
                     let p = at + 80 * i;
@@ -146,11 +198,23 @@ impl Dump<'_> {
         self.field(at + 12, 2, &format!("attributes {attrs:#x}"));
         self.field(at + 14, 2, &format!("primary count {}", b.primary_count()));
         let list_len = (2 * l + 3) & !3;
-        self.field(at + 16, list_len, "list section: u16 triangle indices (+ padding)");
+        self.field(
+            at + 16,
+            list_len,
+            "list section: u16 triangle indices (+ padding)",
+        );
         let tri_rec = if attrs & 4 != 0 { 8 } else { 6 };
         let tri_at = at + 16 + list_len;
         for i in 0..t {
-            let label = b.triangle(i).map(|x| format!("triangle {i}: vertices {:?}{}", x.v, x.material.map(|m| format!(" material {m}")).unwrap_or_default()));
+            let label = b.triangle(i).map(|x| {
+                format!(
+                    "triangle {i}: vertices {:?}{}",
+                    x.v,
+                    x.material
+                        .map(|m| format!(" material {m}"))
+                        .unwrap_or_default()
+                )
+            });
             self.field(tri_at + tri_rec * i, tri_rec, &label.unwrap_or_default());
         }
         let tri_len = (tri_rec * t + 3) & !3;
@@ -160,24 +224,66 @@ impl Dump<'_> {
         let vert_at = tri_at + tri_len;
         let vert_len = (raw.len() - (vert_at - at)).checked_div(w).unwrap_or(0);
         for i in 0..w {
-            let label = b.vertex(i).map(|v| format!("vertex {i}: position {:?}{}{}", v.position, v.normal.map(|n| format!(" normal(oct) {n:?}")).unwrap_or_default(), v.colour.map(|c| format!(" colour {c:?}")).unwrap_or_default()));
+            let label = b.vertex(i).map(|v| {
+                format!(
+                    "vertex {i}: position {:?}{}{}",
+                    v.position,
+                    v.normal
+                        .map(|n| format!(" normal(oct) {n:?}"))
+                        .unwrap_or_default(),
+                    v.colour
+                        .map(|c| format!(" colour {c:?}"))
+                        .unwrap_or_default()
+                )
+            });
             self.field(vert_at + vert_len * i, vert_len, &label.unwrap_or_default());
         }
     }
 
     fn directory(&mut self, reader: &Reader) {
         let base = reader.header().sections.directory_offset as usize;
-        self.title(&format!("directory ({} entries of 32 bytes)", reader.entries().len()));
+        self.title(&format!(
+            "directory ({} entries of 32 bytes)",
+            reader.entries().len()
+        ));
         for (i, e) in reader.entries().iter().enumerate() {
             let at = base + dir::ENTRY_LEN * i;
-            self.field(at + dir::OFF_OFFSET, 8, &format!("block {i}: offset {}", e.offset));
-            self.field(at + dir::OFF_STORED_LENGTH, 4, &format!("stored length {}", e.stored_length));
-            self.field(at + dir::OFF_RAW_LENGTH, 4, &format!("raw length {}", e.raw_length));
-            self.field(at + dir::OFF_CRC, 4, &format!("CRC-32C of stored bytes {:#010x}", e.crc));
-            self.field(at + dir::OFF_KIND, 1, &format!("kind {} ({})", e.kind as u8, e.kind.name()));
-            self.field(at + dir::OFF_CODEC, 1, &format!("codec {} ({})", e.codec as u8, e.codec.name()));
+            self.field(
+                at + dir::OFF_OFFSET,
+                8,
+                &format!("block {i}: offset {}", e.offset),
+            );
+            self.field(
+                at + dir::OFF_STORED_LENGTH,
+                4,
+                &format!("stored length {}", e.stored_length),
+            );
+            self.field(
+                at + dir::OFF_RAW_LENGTH,
+                4,
+                &format!("raw length {}", e.raw_length),
+            );
+            self.field(
+                at + dir::OFF_CRC,
+                4,
+                &format!("CRC-32C of stored bytes {:#010x}", e.crc),
+            );
+            self.field(
+                at + dir::OFF_KIND,
+                1,
+                &format!("kind {} ({})", e.kind as u8, e.kind.name()),
+            );
+            self.field(
+                at + dir::OFF_CODEC,
+                1,
+                &format!("codec {} ({})", e.codec as u8, e.codec.name()),
+            );
             self.field(at + dir::OFF_LEVEL, 2, &format!("level {}", e.level));
-            self.field(at + dir::OFF_ITEM_COUNT, 4, &format!("item count {}", e.item_count));
+            self.field(
+                at + dir::OFF_ITEM_COUNT,
+                4,
+                &format!("item count {}", e.item_count),
+            );
             self.field(at + dir::OFF_RESERVED, 4, "reserved");
         }
     }
@@ -185,7 +291,11 @@ impl Dump<'_> {
     fn metadata(&mut self, reader: &Reader) {
         let s = reader.header().sections;
         self.title(&format!("metadata ({} bytes, postcard)", s.metadata_length));
-        self.field(s.metadata_offset as usize, s.metadata_length as usize, "postcard-encoded Metadata, decoded below");
+        self.field(
+            s.metadata_offset as usize,
+            s.metadata_length as usize,
+            "postcard-encoded Metadata, decoded below",
+        );
         let json = serde_json::to_string_pretty(reader.metadata()).unwrap_or_default();
         let _ = writeln!(self.o, "\n```json\n{json}\n```");
     }
@@ -199,7 +309,11 @@ impl Dump<'_> {
             (trl::OFF_METADATA_LENGTH, 4, "metadata length"),
             (trl::OFF_DIRECTORY_CRC, 4, "CRC-32C of the directory"),
             (trl::OFF_METADATA_CRC, 4, "CRC-32C of the metadata"),
-            (trl::OFF_ROOT_CHECKSUM, 4, "root checksum (the file identity)"),
+            (
+                trl::OFF_ROOT_CHECKSUM,
+                4,
+                "root checksum (the file identity)",
+            ),
             (trl::OFF_TRAILER_CRC, 4, "CRC-32C of trailer bytes 0..36"),
             (trl::OFF_END_MAGIC, 8, "end magic OCFEND\\r\\n"),
         ];

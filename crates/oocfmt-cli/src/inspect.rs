@@ -61,15 +61,42 @@ fn mib(b: u64) -> String {
 pub fn render(s: &Summary) -> String {
     use std::fmt::Write;
     let mut o = String::new();
-    let feats = if s.feature_names.is_empty() { "none".to_string() } else { s.feature_names.join(", ") };
-    let _ = writeln!(o, "file       {} ({}, {} blocks of {})", s.file, mib(s.file_length), s.block_count, mib(u64::from(s.block_size)));
-    let _ = writeln!(o, "format     {} features {feats} (compatible {:#x}, incompatible {:#x})", s.version, s.compatible_features, s.incompatible_features);
+    let feats = if s.feature_names.is_empty() {
+        "none".to_string()
+    } else {
+        s.feature_names.join(", ")
+    };
+    let _ = writeln!(
+        o,
+        "file       {} ({}, {} blocks of {})",
+        s.file,
+        mib(s.file_length),
+        s.block_count,
+        mib(u64::from(s.block_size))
+    );
+    let _ = writeln!(
+        o,
+        "format     {} features {feats} (compatible {:#x}, incompatible {:#x})",
+        s.version, s.compatible_features, s.incompatible_features
+    );
     let _ = writeln!(o, "identity   {}", s.identity);
     let _ = writeln!(o);
     let _ = writeln!(
         o,
         "{:>9} {:>7} {:>8} {:>8} {:>7} {:>8} {:>7} {:>7} {:>10} {:>7} {:>10} {:>10} {:>6}  codecs",
-        "level", "blocks", "treelets", "basic", "lod", "leaves", "vox1", "vox6", "triangles", "proxies", "raw", "stored", "ratio"
+        "level",
+        "blocks",
+        "treelets",
+        "basic",
+        "lod",
+        "leaves",
+        "vox1",
+        "vox6",
+        "triangles",
+        "proxies",
+        "raw",
+        "stored",
+        "ratio"
     );
     for r in &s.levels {
         let codecs: Vec<String> = r.codecs.iter().map(|(k, v)| format!("{k}:{v}")).collect();
@@ -100,16 +127,28 @@ pub fn render(s: &Summary) -> String {
         mib(res.resident_stored_bytes),
         mib(res.proxy_raw_bytes)
     );
-    let _ = writeln!(o, "streamed   {} on demand (treelet and triangle blocks)", mib(res.streamed_bytes));
+    let _ = writeln!(
+        o,
+        "streamed   {} on demand (treelet and triangle blocks)",
+        mib(res.streamed_bytes)
+    );
     let t = &s.tree;
     let _ = writeln!(
         o,
         "tree       depth {}, {} LOD levels, {} treelets, {} basic + {} LOD nodes, {} leaves, {:.2} triangles per leaf",
         t.depth, t.lod_levels, t.treelets, t.basic_nodes, t.lod_nodes, t.leaves, t.avg_triangles_per_leaf
     );
-    let _ = writeln!(o, "triangles  {} ({:.1} bytes per triangle in the file)", t.triangles, t.bytes_per_triangle);
+    let _ = writeln!(
+        o,
+        "triangles  {} ({:.1} bytes per triangle in the file)",
+        t.triangles, t.bytes_per_triangle
+    );
     let m = &s.metadata;
-    let _ = writeln!(o, "bounds     {:?} .. {:?}, origin {:?}", m.scene.bounds_min, m.scene.bounds_max, m.scene.origin);
+    let _ = writeln!(
+        o,
+        "bounds     {:?} .. {:?}, origin {:?}",
+        m.scene.bounds_min, m.scene.bounds_max, m.scene.origin
+    );
     let sc = &m.schema;
     let _ = writeln!(
         o,
@@ -120,7 +159,12 @@ pub fn render(s: &Summary) -> String {
     for mat in m.materials.iter().take(16) {
         let _ = writeln!(o, "           {:<24} diffuse {:?}", mat.name, mat.diffuse);
     }
-    let params: Vec<String> = m.build.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
+    let params: Vec<String> = m
+        .build
+        .params
+        .iter()
+        .map(|(k, v)| format!("{k}={v}"))
+        .collect();
     let _ = writeln!(
         o,
         "build      treelet height {}, max {} triangles per leaf{}{}",
@@ -129,7 +173,16 @@ pub fn render(s: &Summary) -> String {
         if params.is_empty() { "" } else { ", " },
         params.join(", ")
     );
-    let _ = writeln!(o, "provenance {} from {}", m.provenance.generator, if m.provenance.sources.is_empty() { "-".to_string() } else { m.provenance.sources.join(", ") });
+    let _ = writeln!(
+        o,
+        "provenance {} from {}",
+        m.provenance.generator,
+        if m.provenance.sources.is_empty() {
+            "-".to_string()
+        } else {
+            m.provenance.sources.join(", ")
+        }
+    );
     o
 }
 

@@ -49,9 +49,28 @@ pub struct NodeDump {
 #[derive(Serialize)]
 #[serde(tag = "type", rename_all = "lowercase")]
 pub enum NodeJson {
-    Basic { axis: u8, split: f32, left: Option<usize>, right: Option<usize> },
-    Lod { axis: u8, split: f32, radius: f32, child_block: u32, child_treelet: u32, left: bool, right: bool, voxel_offset: u32, proxy: Option<u32> },
-    Leaf { triangle_block: u32, first: u16, count: u16 },
+    Basic {
+        axis: u8,
+        split: f32,
+        left: Option<usize>,
+        right: Option<usize>,
+    },
+    Lod {
+        axis: u8,
+        split: f32,
+        radius: f32,
+        child_block: u32,
+        child_treelet: u32,
+        left: bool,
+        right: bool,
+        voxel_offset: u32,
+        proxy: Option<u32>,
+    },
+    Leaf {
+        triangle_block: u32,
+        first: u16,
+        count: u16,
+    },
 }
 
 #[derive(Serialize)]
@@ -64,7 +83,11 @@ pub struct SampleDump {
 
 impl From<Sample> for SampleDump {
     fn from(s: Sample) -> Self {
-        SampleDump { normal: s.normal(), colour: s.colour(), empty: s.is_empty() }
+        SampleDump {
+            normal: s.normal(),
+            colour: s.colour(),
+            empty: s.is_empty(),
+        }
     }
 }
 
@@ -101,12 +124,19 @@ pub fn dump(reader: &Reader, id: u32) -> Result<BlockDump, CliError> {
     let e = block.entry;
     let content = match e.kind {
         BlockKind::Treelet => Content::Treelets(treelets(&block)?),
-        BlockKind::Triangle => Content::Triangles(triangles(&block, reader.metadata().schema.triangle_attributes())?),
+        BlockKind::Triangle => Content::Triangles(triangles(
+            &block,
+            reader.metadata().schema.triangle_attributes(),
+        )?),
         BlockKind::Proxy => Content::Proxies(
             block
                 .proxies()?
                 .into_iter()
-                .map(|p| ProxyDump { node_block: p.node_block, area: p.area, samples: p.samples.iter().map(|&s| s.into()).collect() })
+                .map(|p| ProxyDump {
+                    node_block: p.node_block,
+                    area: p.area,
+                    samples: p.samples.iter().map(|&s| s.into()).collect(),
+                })
                 .collect(),
         ),
     };
@@ -129,23 +159,78 @@ fn treelets(block: &oocfmt::Block) -> Result<Vec<TreeletDump>, CliError> {
     let mut out: Vec<TreeletDump> = Vec::new();
     view.walk(|t, pos, node| {
         if out.last().is_none_or(|d| d.index != t) {
-            out.push(TreeletDump { index: t, start: pos, nodes: Vec::new() });
+            out.push(TreeletDump {
+                index: t,
+                start: pos,
+                nodes: Vec::new(),
+            });
         }
         let child = |u: u16| (u != 0).then(|| oocfmt::records::TreeletBlock::child_pos(pos, u));
         let (json, voxel) = match *node {
-            Node::Basic { axis, split, left, right } => (NodeJson::Basic { axis, split, left: child(left), right: child(right) }, None),
-            Node::Lod { axis, split, radius, left_present, right_present, child_treelet, child_block, voxel_offset, proxy } => {
+            Node::Basic {
+                axis,
+                split,
+                left,
+                right,
+            } => (
+                NodeJson::Basic {
+                    axis,
+                    split,
+                    left: child(left),
+                    right: child(right),
+                },
+                None,
+            ),
+            Node::Lod {
+                axis,
+                split,
+                radius,
+                left_present,
+                right_present,
+                child_treelet,
+                child_block,
+                voxel_offset,
+                proxy,
+            } => {
                 let samples = match view.voxel(voxel_offset)? {
                     Voxel::Single(s) => vec![s.into()],
                     Voxel::Six(s) => s.iter().map(|&x| x.into()).collect(),
                 };
                 let proxy = (proxy != oocfmt::records::NO_PROXY).then_some(proxy);
-                (NodeJson::Lod { axis, split, radius, child_block, child_treelet, left: left_present, right: right_present, voxel_offset, proxy }, Some(samples))
+                (
+                    NodeJson::Lod {
+                        axis,
+                        split,
+                        radius,
+                        child_block,
+                        child_treelet,
+                        left: left_present,
+                        right: right_present,
+                        voxel_offset,
+                        proxy,
+                    },
+                    Some(samples),
+                )
             }
-            Node::Leaf { count, first, block } => (NodeJson::Leaf { triangle_block: block, first, count }, None),
+            Node::Leaf {
+                count,
+                first,
+                block,
+            } => (
+                NodeJson::Leaf {
+                    triangle_block: block,
+                    first,
+                    count,
+                },
+                None,
+            ),
         };
         if let Some(d) = out.last_mut() {
-            d.nodes.push(NodeDump { pos, node: json, voxel });
+            d.nodes.push(NodeDump {
+                pos,
+                node: json,
+                voxel,
+            });
         }
         Ok(())
     })?;
@@ -154,14 +239,28 @@ fn treelets(block: &oocfmt::Block) -> Result<Vec<TreeletDump>, CliError> {
 
 fn triangles(block: &oocfmt::Block, attrs: u16) -> Result<TriangleDump, CliError> {
     let t = block.triangles(attrs)?;
-    let list = (0..t.list_count()).map(|i| t.list(i)).collect::<Result<_, _>>()?;
-    let triangles = (0..t.triangle_count()).map(|i| t.triangle(i)).collect::<Result<_, _>>()?;
+    let list = (0..t.list_count())
+        .map(|i| t.list(i))
+        .collect::<Result<_, _>>()?;
+    let triangles = (0..t.triangle_count())
+        .map(|i| t.triangle(i))
+        .collect::<Result<_, _>>()?;
     let vertices = (0..t.vertex_count())
         .map(|i| {
-            t.vertex(i).map(|v| VertexDump { position: v.position, normal: v.normal.map(oocfmt::records::triangle::oct_decode), colour: v.colour })
+            t.vertex(i).map(|v| VertexDump {
+                position: v.position,
+                normal: v.normal.map(oocfmt::records::triangle::oct_decode),
+                colour: v.colour,
+            })
         })
         .collect::<Result<_, _>>()?;
-    Ok(TriangleDump { attributes: t.attributes(), primary_count: t.primary_count(), list, triangles, vertices })
+    Ok(TriangleDump {
+        attributes: t.attributes(),
+        primary_count: t.primary_count(),
+        list,
+        triangles,
+        vertices,
+    })
 }
 
 /// Text form of a block dump.
@@ -171,33 +270,69 @@ pub fn render(d: &BlockDump) -> String {
     let _ = writeln!(
         o,
         "block {} {:?} level {} codec {:?}: {} stored bytes at {}, {} raw, crc {}, {} items",
-        d.id, d.kind, d.level, d.codec, d.stored_length, d.offset, d.raw_length, d.crc, d.item_count
+        d.id,
+        d.kind,
+        d.level,
+        d.codec,
+        d.stored_length,
+        d.offset,
+        d.raw_length,
+        d.crc,
+        d.item_count
     );
     match &d.content {
         Content::Treelets(ts) => {
             for t in ts {
                 let _ = writeln!(o, "treelet {} at node byte {}", t.index, t.start);
                 for n in &t.nodes {
-                    let _ = writeln!(o, "  {:>6}: {}", n.pos, serde_json::to_string(&n.node).unwrap_or_default());
+                    let _ = writeln!(
+                        o,
+                        "  {:>6}: {}",
+                        n.pos,
+                        serde_json::to_string(&n.node).unwrap_or_default()
+                    );
                     if let Some(v) = &n.voxel {
-                        let _ = writeln!(o, "          voxel {}", serde_json::to_string(v).unwrap_or_default());
+                        let _ = writeln!(
+                            o,
+                            "          voxel {}",
+                            serde_json::to_string(v).unwrap_or_default()
+                        );
                     }
                 }
             }
         }
         Content::Triangles(t) => {
-            let _ = writeln!(o, "attributes {:#x}, {} primaries", t.attributes, t.primary_count);
+            let _ = writeln!(
+                o,
+                "attributes {:#x}, {} primaries",
+                t.attributes, t.primary_count
+            );
             let _ = writeln!(o, "list {:?}", t.list);
             for (i, tri) in t.triangles.iter().enumerate() {
-                let _ = writeln!(o, "  triangle {i}: vertices {:?}{}", tri.v, tri.material.map(|m| format!(" material {m}")).unwrap_or_default());
+                let _ = writeln!(
+                    o,
+                    "  triangle {i}: vertices {:?}{}",
+                    tri.v,
+                    tri.material
+                        .map(|m| format!(" material {m}"))
+                        .unwrap_or_default()
+                );
             }
             for (i, v) in t.vertices.iter().enumerate() {
-                let _ = writeln!(o, "  vertex {i}: {}", serde_json::to_string(v).unwrap_or_default());
+                let _ = writeln!(
+                    o,
+                    "  vertex {i}: {}",
+                    serde_json::to_string(v).unwrap_or_default()
+                );
             }
         }
         Content::Proxies(ps) => {
             for (i, p) in ps.iter().enumerate() {
-                let _ = writeln!(o, "  proxy {i}: node block {}, area {}", p.node_block, p.area);
+                let _ = writeln!(
+                    o,
+                    "  proxy {i}: node block {}, area {}",
+                    p.node_block, p.area
+                );
             }
         }
     }

@@ -16,8 +16,14 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "oocfmt", version, about = "Out-of-core ray tracing containers (.oocf): inspect, verify, build")]
-#[command(after_help = "Exit status: 0 success (verify: valid), 1 invalid file, 2 could not run (usage, I/O).")]
+#[command(
+    name = "oocfmt",
+    version,
+    about = "Out-of-core ray tracing containers (.oocf): inspect, verify, build"
+)]
+#[command(
+    after_help = "Exit status: 0 success (verify: valid), 1 invalid file, 2 could not run (usage, I/O)."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -37,9 +37,16 @@ pub fn run(a: &Args) -> CliResult {
     } else {
         Depth::Full
     };
-    let src = FileSource::open(&a.file).map_err(|e| CliError::Io { path: a.file.display().to_string(), source: e })?;
+    let src = FileSource::open(&a.file).map_err(|e| CliError::Io {
+        path: a.file.display().to_string(),
+        source: e,
+    })?;
     let bar = progress::bytes(src.len(), "verify", a.quiet || a.json);
-    let opts = VerifyOptions { depth, max_issues: a.max_issues, ..VerifyOptions::default() };
+    let opts = VerifyOptions {
+        depth,
+        max_issues: a.max_issues,
+        ..VerifyOptions::default()
+    };
     let name = a.file.display().to_string();
     let report = verify(&src, &name, &opts, &|done| bar.set_position(done))?;
     bar.finish_and_clear();
@@ -50,7 +57,10 @@ pub fn run(a: &Args) -> CliResult {
             println!("{issue}");
         }
         if report.issues_omitted > 0 {
-            println!("... {} more issues not shown (raise --max-issues)", report.issues_omitted);
+            println!(
+                "... {} more issues not shown (raise --max-issues)",
+                report.issues_omitted
+            );
         }
         let verdict = if report.valid { "valid" } else { "INVALID" };
         println!(

@@ -5,14 +5,20 @@ use crate::error::{bad, Code, Result};
 pub(crate) fn u16_at(b: &[u8], off: usize, code: Code) -> Result<u16> {
     match b.get(off..off.wrapping_add(2)) {
         Some(&[x0, x1]) => Ok(u16::from_le_bytes([x0, x1])),
-        _ => bad(code, format!("2-byte field at {off} is past the end ({} bytes)", b.len())),
+        _ => bad(
+            code,
+            format!("2-byte field at {off} is past the end ({} bytes)", b.len()),
+        ),
     }
 }
 
 pub(crate) fn u32_at(b: &[u8], off: usize, code: Code) -> Result<u32> {
     match b.get(off..off.wrapping_add(4)) {
         Some(&[x0, x1, x2, x3]) => Ok(u32::from_le_bytes([x0, x1, x2, x3])),
-        _ => bad(code, format!("4-byte field at {off} is past the end ({} bytes)", b.len())),
+        _ => bad(
+            code,
+            format!("4-byte field at {off} is past the end ({} bytes)", b.len()),
+        ),
     }
 }
 

@@ -62,17 +62,24 @@ impl Codec {
 /// output length is an error, whatever the compressed data claims.
 pub fn decode_into(codec: CodecId, stored: &[u8], out: &mut [u8]) -> Result<()> {
     let fail = |detail: String| Error::malformed(Code::BlockDecompress, detail);
-    let produced = match codec {
-        CodecId::None => {
-            if stored.len() != out.len() {
-                return Err(fail(format!("{} stored bytes for {} raw bytes", stored.len(), out.len())));
+    let produced =
+        match codec {
+            CodecId::None => {
+                if stored.len() != out.len() {
+                    return Err(fail(format!(
+                        "{} stored bytes for {} raw bytes",
+                        stored.len(),
+                        out.len()
+                    )));
+                }
+                out.copy_from_slice(stored);
+                out.len()
             }
-            out.copy_from_slice(stored);
-            out.len()
-        }
-        CodecId::Lz4 => lz4_flex::block::decompress_into(stored, out).map_err(|e| fail(format!("lz4: {e}")))?,
-        CodecId::Zstd => zstd::bulk::decompress_to_buffer(stored, out).map_err(|e| fail(format!("zstd: {e}")))?,
-    };
+            CodecId::Lz4 => lz4_flex::block::decompress_into(stored, out)
+                .map_err(|e| fail(format!("lz4: {e}")))?,
+            CodecId::Zstd => zstd::bulk::decompress_to_buffer(stored, out)
+                .map_err(|e| fail(format!("zstd: {e}")))?,
+        };
     if produced != out.len() {
         return Err(fail(format!(
             "{} produced {produced} bytes, the directory says {}",
@@ -97,7 +104,9 @@ mod tests {
     #[test]
     fn every_codec_round_trips_and_never_grows() {
         let raw: Vec<u8> = (0..5000u32).map(|i| (i % 7) as u8).collect();
-        let noise: Vec<u8> = (0..5000u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect();
+        let noise: Vec<u8> = (0..5000u32)
+            .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+            .collect();
         for codec in [Codec::None, Codec::Lz4, Codec::Zstd(3)] {
             for input in [&raw, &noise] {
                 let (id, stored) = codec.encode(input).unwrap_or_default_pair();

@@ -98,12 +98,18 @@ impl BlockEntry {
 
     /// Decodes one entry and checks what it can alone: kind, codec, reserved bytes and lengths.
     pub fn decode(b: &[u8], block_size: u32) -> Result<BlockEntry> {
-        let kind_byte = *b.get(OFF_KIND).ok_or_else(|| Error::malformed(Code::Layout, "short directory entry"))?;
-        let codec_byte = *b.get(OFF_CODEC).ok_or_else(|| Error::malformed(Code::Layout, "short directory entry"))?;
-        let kind = BlockKind::from_u8(kind_byte)
-            .ok_or_else(|| Error::malformed(Code::EntryKind, format!("unknown block kind {kind_byte}")))?;
-        let codec = CodecId::from_u8(codec_byte)
-            .ok_or_else(|| Error::malformed(Code::EntryCodec, format!("unknown codec {codec_byte}")))?;
+        let kind_byte = *b
+            .get(OFF_KIND)
+            .ok_or_else(|| Error::malformed(Code::Layout, "short directory entry"))?;
+        let codec_byte = *b
+            .get(OFF_CODEC)
+            .ok_or_else(|| Error::malformed(Code::Layout, "short directory entry"))?;
+        let kind = BlockKind::from_u8(kind_byte).ok_or_else(|| {
+            Error::malformed(Code::EntryKind, format!("unknown block kind {kind_byte}"))
+        })?;
+        let codec = CodecId::from_u8(codec_byte).ok_or_else(|| {
+            Error::malformed(Code::EntryCodec, format!("unknown codec {codec_byte}"))
+        })?;
         if u32_at(b, OFF_RESERVED, Code::EntryReserved)? != 0 {
             return bad(Code::EntryReserved, "reserved directory bytes are not zero");
         }
@@ -119,10 +125,19 @@ impl BlockEntry {
         };
         e.check_lengths(block_size)?;
         if e.offset.checked_add(u64::from(e.stored_length)).is_none() {
-            return bad(Code::EntryOffset, format!("block at {} + {} bytes passes 2^64", e.offset, e.stored_length));
+            return bad(
+                Code::EntryOffset,
+                format!(
+                    "block at {} + {} bytes passes 2^64",
+                    e.offset, e.stored_length
+                ),
+            );
         }
         if e.kind != BlockKind::Treelet && e.level != 0 {
-            return bad(Code::EntryLevel, format!("a {} block has level {}, not 0", kind.name(), e.level));
+            return bad(
+                Code::EntryLevel,
+                format!("a {} block has level {}, not 0", kind.name(), e.level),
+            );
         }
         if e.item_count == 0 {
             return bad(Code::EntryItemCount, "item count is zero");
@@ -134,12 +149,17 @@ impl BlockEntry {
         if self.raw_length == 0 || self.raw_length > block_size {
             return bad(
                 Code::EntryLength,
-                format!("raw length {} is outside 1 ..= block size {block_size}", self.raw_length),
+                format!(
+                    "raw length {} is outside 1 ..= block size {block_size}",
+                    self.raw_length
+                ),
             );
         }
         let ok = match self.codec {
             CodecId::None => self.stored_length == self.raw_length,
-            CodecId::Lz4 | CodecId::Zstd => self.stored_length >= 1 && self.stored_length < self.raw_length,
+            CodecId::Lz4 | CodecId::Zstd => {
+                self.stored_length >= 1 && self.stored_length < self.raw_length
+            }
         };
         if !ok {
             return bad(
@@ -173,7 +193,10 @@ pub fn check_placement(entries: &[BlockEntry], directory_offset: u64) -> Vec<(u3
                 id,
                 Error::malformed(
                     Code::EntryOffset,
-                    format!("block starts at byte {} but the previous one ends at {expected}", e.offset),
+                    format!(
+                        "block starts at byte {} but the previous one ends at {expected}",
+                        e.offset
+                    ),
                 ),
             ));
         }
@@ -184,7 +207,10 @@ pub fn check_placement(entries: &[BlockEntry], directory_offset: u64) -> Vec<(u3
                     id,
                     Error::malformed(
                         Code::EntryLevel,
-                        format!("treelet block of level {} after one of level {last_level}", e.level),
+                        format!(
+                            "treelet block of level {} after one of level {last_level}",
+                            e.level
+                        ),
                     ),
                 ));
             }
@@ -197,7 +223,9 @@ pub fn check_placement(entries: &[BlockEntry], directory_offset: u64) -> Vec<(u3
             id,
             Error::malformed(
                 Code::EntryOffset,
-                format!("blocks end at byte {expected} but the directory starts at {directory_offset}"),
+                format!(
+                    "blocks end at byte {expected} but the directory starts at {directory_offset}"
+                ),
             ),
         ));
     }

@@ -60,7 +60,13 @@ impl SectionTable {
             .trailer_offset()
             .and_then(|t| t.checked_add(crate::trailer::TRAILER_LEN as u64));
         if self.directory_offset < HEADER_LEN as u64 {
-            return bad(Code::Layout, format!("directory offset {} lies inside the header", self.directory_offset));
+            return bad(
+                Code::Layout,
+                format!(
+                    "directory offset {} lies inside the header",
+                    self.directory_offset
+                ),
+            );
         }
         if dir_end != Some(self.metadata_offset) {
             return bad(
@@ -149,12 +155,19 @@ impl Header {
         if b[OFF_RESERVED_A..OFF_INCOMPAT].iter().any(|&x| x != 0)
             || u32_at(b, OFF_RESERVED_B, Code::HeaderReserved)? != 0
         {
-            return Err(Error::malformed(Code::HeaderReserved, "reserved header bytes are not zero").at(OFF_RESERVED_A as u64));
+            return Err(Error::malformed(
+                Code::HeaderReserved,
+                "reserved header bytes are not zero",
+            )
+            .at(OFF_RESERVED_A as u64));
         }
         if !(MIN_BLOCK_SIZE_LOG2..=MAX_BLOCK_SIZE_LOG2).contains(&h.block_size_log2) {
             return Err(Error::malformed(
                 Code::HeaderBlockSize,
-                format!("block size 2^{} is outside 2^12 ..= 2^20", h.block_size_log2),
+                format!(
+                    "block size 2^{} is outside 2^12 ..= 2^20",
+                    h.block_size_log2
+                ),
             )
             .at(OFF_BLOCK_SIZE_LOG2 as u64));
         }
@@ -162,7 +175,9 @@ impl Header {
         if unknown != 0 {
             return Err(Error::new(ErrorKind::Unsupported {
                 code: Code::HeaderFeatureUnsupported,
-                detail: format!("incompatible feature bits {unknown:#x} are not known to this reader"),
+                detail: format!(
+                    "incompatible feature bits {unknown:#x} are not known to this reader"
+                ),
             })
             .at(OFF_INCOMPAT as u64));
         }
@@ -173,7 +188,10 @@ impl Header {
     /// which goes on past a bad checksum to find more problems.
     pub fn decode_unchecked(b: &[u8]) -> Result<Header> {
         let b = b.get(..HEADER_LEN).ok_or_else(|| {
-            Error::malformed(Code::FileTooSmall, format!("{} bytes, shorter than the 64-byte header", b.len()))
+            Error::malformed(
+                Code::FileTooSmall,
+                format!("{} bytes, shorter than the 64-byte header", b.len()),
+            )
         })?;
         check_magic(b)?;
         let c = Code::HeaderMagic;
@@ -182,7 +200,9 @@ impl Header {
         if major != VERSION_MAJOR {
             return Err(Error::new(ErrorKind::Unsupported {
                 code: Code::HeaderVersionUnsupported,
-                detail: format!("format version {major}.{minor}; this reader implements {VERSION_MAJOR}.x"),
+                detail: format!(
+                    "format version {major}.{minor}; this reader implements {VERSION_MAJOR}.x"
+                ),
             })
             .at(OFF_MAJOR as u64));
         }
@@ -239,7 +259,10 @@ mod tests {
         let mut b = Header::new(16).encode().to_vec();
         b.remove(4); // CRLF -> LF drops the '\r'
         b.push(0);
-        let e = Header::decode(&b).err().map(|e| e.to_string()).unwrap_or_default();
+        let e = Header::decode(&b)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
         assert!(e.contains("text-mode"), "{e}");
     }
 }

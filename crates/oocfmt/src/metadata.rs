@@ -24,7 +24,9 @@ pub struct Scene {
 }
 
 /// A treelet: its block and its index in that block.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize,
+)]
 pub struct TreeletRef {
     pub block: u32,
     pub treelet: u32,
@@ -58,7 +60,9 @@ pub struct Schema {
 impl Schema {
     /// The attribute bits of a triangle block (spec §8).
     pub fn triangle_attributes(&self) -> u16 {
-        u16::from(self.vertex_normals) | (u16::from(self.vertex_colours) << 1) | (u16::from(self.triangle_materials) << 2)
+        u16::from(self.vertex_normals)
+            | (u16::from(self.vertex_colours) << 1)
+            | (u16::from(self.triangle_materials) << 2)
     }
 }
 
@@ -120,15 +124,33 @@ impl Metadata {
             return bad("treelet height is zero".into());
         }
         let s = &self.scene;
-        let finite = s.bounds_min.iter().chain(&s.bounds_max).all(|c| c.is_finite()) && s.origin.iter().all(|c| c.is_finite());
+        let finite = s
+            .bounds_min
+            .iter()
+            .chain(&s.bounds_max)
+            .all(|c| c.is_finite())
+            && s.origin.iter().all(|c| c.is_finite());
         if !finite {
-            return bad(format!("scene bounds {:?} .. {:?} or origin {:?} not finite", s.bounds_min, s.bounds_max, s.origin));
+            return bad(format!(
+                "scene bounds {:?} .. {:?} or origin {:?} not finite",
+                s.bounds_min, s.bounds_max, s.origin
+            ));
         }
         if self.root.is_some() && (0..3).any(|a| s.bounds_min[a] > s.bounds_max[a]) {
-            return bad(format!("scene bounds {:?} .. {:?} are inverted", s.bounds_min, s.bounds_max));
+            return bad(format!(
+                "scene bounds {:?} .. {:?} are inverted",
+                s.bounds_min, s.bounds_max
+            ));
         }
-        if let Some(m) = self.materials.iter().find(|m| !m.diffuse.iter().all(|c| c.is_finite())) {
-            return bad(format!("material `{}` has a non-finite colour {:?}", m.name, m.diffuse));
+        if let Some(m) = self
+            .materials
+            .iter()
+            .find(|m| !m.diffuse.iter().all(|c| c.is_finite()))
+        {
+            return bad(format!(
+                "material `{}` has a non-finite colour {:?}",
+                m.name, m.diffuse
+            ));
         }
         Ok(())
     }

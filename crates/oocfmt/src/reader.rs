@@ -11,7 +11,7 @@ use crate::error::{Code, Error, ErrorKind, Result};
 use crate::header::{Header, SectionTable, HEADER_LEN, OFF_HEADER_CRC, VERSION_MINOR};
 use crate::metadata::Metadata;
 use crate::mmap::MmapSource;
-use crate::records::{ProxyRecord, TreeletBlock, TriangleBlock, PROXY_LEN};
+use crate::records::{ProxyRecord, TreeletBlock, TriangleBlock};
 use crate::source::{ByteSource, FileSource};
 use crate::trailer::{Trailer, TRAILER_LEN};
 
@@ -24,7 +24,10 @@ pub struct Limits {
 
 impl Default for Limits {
     fn default() -> Self {
-        Limits { max_metadata_bytes: 16 << 20, max_resident_bytes: 1 << 30 }
+        Limits {
+            max_metadata_bytes: 16 << 20,
+            max_resident_bytes: 1 << 30,
+        }
     }
 }
 
@@ -70,14 +73,19 @@ impl Block {
 
     pub fn proxies(&self) -> Result<Vec<ProxyRecord>> {
         self.expect(BlockKind::Proxy)?;
-        ProxyRecord::decode_block(&self.data, self.entry.item_count as usize).map_err(|e| e.in_block(self.id))
+        ProxyRecord::decode_block(&self.data, self.entry.item_count as usize)
+            .map_err(|e| e.in_block(self.id))
     }
 
     fn expect(&self, kind: BlockKind) -> Result<()> {
         if self.entry.kind != kind {
             return Err(Error::malformed(
                 Code::TreeReference,
-                format!("a {} block where a {} block was expected", self.entry.kind.name(), kind.name()),
+                format!(
+                    "a {} block where a {} block was expected",
+                    self.entry.kind.name(),
+                    kind.name()
+                ),
             )
             .in_block(self.id));
         }
@@ -117,11 +125,21 @@ impl Reader {
         Self::from_source(Box::new(src), name, opts)
     }
 
-    pub fn from_source(source: Box<dyn ByteSource>, name: Arc<str>, opts: ReadOptions) -> Result<Reader> {
+    pub fn from_source(
+        source: Box<dyn ByteSource>,
+        name: Arc<str>,
+        opts: ReadOptions,
+    ) -> Result<Reader> {
         let inner = || -> Result<Reader> {
             let index = read_index(source.as_ref(), &opts)?;
             let proxies = load_proxies(source.as_ref(), &index.entries, &opts)?;
-            Ok(Reader { source, name: Arc::clone(&name), opts, index, proxies })
+            Ok(Reader {
+                source,
+                name: Arc::clone(&name),
+                opts,
+                index,
+                proxies,
+            })
         };
         inner().map_err(|e| e.in_file(&name))
     }
@@ -144,7 +162,11 @@ impl Reader {
 
     pub fn entry(&self, id: u32) -> Result<&BlockEntry> {
         self.index.entries.get(id as usize).ok_or_else(|| {
-            Error::malformed(Code::TreeReference, format!("block {id} of {}", self.index.entries.len())).in_file(&self.name)
+            Error::malformed(
+                Code::TreeReference,
+                format!("block {id} of {}", self.index.entries.len()),
+            )
+            .in_file(&self.name)
         })
     }
 
@@ -173,7 +195,8 @@ impl Reader {
     /// Reads, checks and decompresses block `id`.
     pub fn read_block(&self, id: u32) -> Result<Block> {
         let entry = *self.entry(id)?;
-        let data = read_block_data(self.source.as_ref(), &entry, &self.opts).map_err(|e| e.in_block(id).in_file(&self.name))?;
+        let data = read_block_data(self.source.as_ref(), &entry, &self.opts)
+            .map_err(|e| e.in_block(id).in_file(&self.name))?;
         Ok(Block { id, entry, data })
     }
 
@@ -186,23 +209,47 @@ impl Reader {
 }
 
 /// Reads one block's stored bytes, checks the CRC and decompresses into exactly `raw_length`.
-pub fn read_block_data(src: &dyn ByteSource, e: &BlockEntry, opts: &ReadOptions) -> Result<Vec<u8>> {
-    if e.offset.checked_add(u64::from(e.stored_length)).is_none_or(|end| end > src.len()) {
-        return Err(Error::malformed(Code::EntryOffset, format!("block bytes {}+{} pass the end of the file", e.offset, e.stored_length)).at(e.offset));
+pub fn read_block_data(
+    src: &dyn ByteSource,
+    e: &BlockEntry,
+    opts: &ReadOptions,
+) -> Result<Vec<u8>> {
+    if e.offset
+        .checked_add(u64::from(e.stored_length))
+        .is_none_or(|end| end > src.len())
+    {
+        return Err(Error::malformed(
+            Code::EntryOffset,
+            format!(
+                "block bytes {}+{} pass the end of the file",
+                e.offset, e.stored_length
+            ),
+        )
+        .at(e.offset));
     }
     let mut stored_buf;
-    let stored: &[u8] = match src.as_slice().and_then(|s| s.get(usize::try_from(e.offset).ok()?..usize::try_from(e.end()).ok()?)) {
+    let stored: &[u8] = match src
+        .as_slice()
+        .and_then(|s| s.get(usize::try_from(e.offset).ok()?..usize::try_from(e.end()).ok()?))
+    {
         Some(s) => s,
         None => {
             stored_buf = vec![0u8; e.stored_length as usize];
-            src.read_exact_at(e.offset, &mut stored_buf).map_err(|err| Error::io(err, e.offset))?;
+            src.read_exact_at(e.offset, &mut stored_buf)
+                .map_err(|err| Error::io(err, e.offset))?;
             &stored_buf
         }
     };
     if opts.check_crcs() {
         let computed = crc32c(stored);
         if computed != e.crc {
-            return Err(Error::new(ErrorKind::Checksum { code: Code::BlockChecksum, what: "block", stored: e.crc, computed }).at(e.offset));
+            return Err(Error::new(ErrorKind::Checksum {
+                code: Code::BlockChecksum,
+                what: "block",
+                stored: e.crc,
+                computed,
+            })
+            .at(e.offset));
         }
     }
     let mut raw = vec![0u8; e.raw_length as usize];
@@ -213,10 +260,18 @@ pub fn read_block_data(src: &dyn ByteSource, e: &BlockEntry, opts: &ReadOptions)
 /// Reads `len` bytes at `offset` after checking they lie in the source.
 pub(crate) fn read_vec(src: &dyn ByteSource, offset: u64, len: u64) -> Result<Vec<u8>> {
     if offset.checked_add(len).is_none_or(|end| end > src.len()) {
-        return Err(Error::malformed(Code::Layout, format!("{len} bytes at {offset} pass the end of the file ({} bytes)", src.len())).at(offset));
+        return Err(Error::malformed(
+            Code::Layout,
+            format!(
+                "{len} bytes at {offset} pass the end of the file ({} bytes)",
+                src.len()
+            ),
+        )
+        .at(offset));
     }
     let mut v = vec![0u8; len as usize];
-    src.read_exact_at(offset, &mut v).map_err(|e| Error::io(e, offset))?;
+    src.read_exact_at(offset, &mut v)
+        .map_err(|e| Error::io(e, offset))?;
     Ok(v)
 }
 
@@ -224,10 +279,31 @@ pub(crate) fn read_vec(src: &dyn ByteSource, offset: u64, len: u64) -> Result<Ve
 pub fn read_header(src: &dyn ByteSource) -> Result<(Header, Vec<u8>)> {
     let min = (HEADER_LEN + TRAILER_LEN) as u64;
     if src.len() < min {
-        return Err(Error::malformed(Code::FileTooSmall, format!("{} bytes, less than header and trailer ({min})", src.len())));
+        return Err(short_file_error(src)?);
     }
     let bytes = read_vec(src, 0, HEADER_LEN as u64)?;
     Ok((Header::decode(&bytes)?, bytes))
+}
+
+/// The error for a file too short to hold header and trailer. Spec §11 asks for a foreign
+/// magic or major version to be named as such, so the first bytes are still looked at.
+pub fn short_file_error(src: &dyn ByteSource) -> Result<Error> {
+    let min = (HEADER_LEN + TRAILER_LEN) as u64;
+    let mut head = read_vec(src, 0, src.len().min(HEADER_LEN as u64))?;
+    let known = head.len() >= crate::header::OFF_MINOR + 2;
+    head.resize(HEADER_LEN, 0);
+    let too_small = Error::malformed(
+        Code::FileTooSmall,
+        format!("{} bytes, less than header and trailer ({min})", src.len()),
+    );
+    Ok(match Header::decode_unchecked(&head) {
+        Err(e)
+            if known && matches!(e.code(), Code::HeaderVersionUnsupported | Code::HeaderMagic) =>
+        {
+            e
+        }
+        _ => too_small,
+    })
 }
 
 pub fn read_trailer(src: &dyn ByteSource) -> Result<Trailer> {
@@ -237,28 +313,52 @@ pub fn read_trailer(src: &dyn ByteSource) -> Result<Trailer> {
 }
 
 /// Reads the directory of `sections` and checks its CRC (when `crc` is given) and entries.
-pub fn read_directory(src: &dyn ByteSource, sections: &SectionTable, block_size: u32, crc: Option<u32>) -> Result<(Vec<BlockEntry>, Vec<u8>)> {
+pub fn read_directory(
+    src: &dyn ByteSource,
+    sections: &SectionTable,
+    block_size: u32,
+    crc: Option<u32>,
+) -> Result<(Vec<BlockEntry>, Vec<u8>)> {
     let len = u64::from(sections.block_count) * ENTRY_LEN as u64;
     let bytes = read_vec(src, sections.directory_offset, len)?;
     if let Some(stored) = crc {
         let computed = crc32c(&bytes);
         if computed != stored {
-            return Err(Error::new(ErrorKind::Checksum { code: Code::DirectoryChecksum, what: "directory", stored, computed }).at(sections.directory_offset));
+            return Err(Error::new(ErrorKind::Checksum {
+                code: Code::DirectoryChecksum,
+                what: "directory",
+                stored,
+                computed,
+            })
+            .at(sections.directory_offset));
         }
     }
     let entries = bytes
         .chunks_exact(ENTRY_LEN)
         .zip(0u32..)
-        .map(|(b, id)| BlockEntry::decode(b, block_size).map_err(|e| e.in_block(id).at(sections.directory_offset + u64::from(id) * ENTRY_LEN as u64)))
+        .map(|(b, id)| {
+            BlockEntry::decode(b, block_size).map_err(|e| {
+                e.in_block(id)
+                    .at(sections.directory_offset + u64::from(id) * ENTRY_LEN as u64)
+            })
+        })
         .collect::<Result<Vec<_>>>()?;
-    if let Some((id, e)) = check_placement(&entries, sections.directory_offset).into_iter().next() {
+    if let Some((id, e)) = check_placement(&entries, sections.directory_offset)
+        .into_iter()
+        .next()
+    {
         return Err(e.in_block(id));
     }
     Ok((entries, bytes))
 }
 
 /// Reads and decodes the metadata, checking length limit and CRC.
-pub fn read_metadata(src: &dyn ByteSource, header: &Header, trailer: &Trailer, limits: &Limits) -> Result<(Metadata, Vec<u8>)> {
+pub fn read_metadata(
+    src: &dyn ByteSource,
+    header: &Header,
+    trailer: &Trailer,
+    limits: &Limits,
+) -> Result<(Metadata, Vec<u8>)> {
     let s = &trailer.sections;
     if s.metadata_length > limits.max_metadata_bytes {
         return Err(Error::new(ErrorKind::Limit {
@@ -272,9 +372,16 @@ pub fn read_metadata(src: &dyn ByteSource, header: &Header, trailer: &Trailer, l
     let bytes = read_vec(src, s.metadata_offset, u64::from(s.metadata_length))?;
     let computed = crc32c(&bytes);
     if computed != trailer.metadata_crc {
-        return Err(Error::new(ErrorKind::Checksum { code: Code::MetadataChecksum, what: "metadata", stored: trailer.metadata_crc, computed }).at(s.metadata_offset));
+        return Err(Error::new(ErrorKind::Checksum {
+            code: Code::MetadataChecksum,
+            what: "metadata",
+            stored: trailer.metadata_crc,
+            computed,
+        })
+        .at(s.metadata_offset));
     }
-    let meta = Metadata::decode(&bytes, header.minor > VERSION_MINOR).map_err(|e| e.at(s.metadata_offset))?;
+    let meta = Metadata::decode(&bytes, header.minor > VERSION_MINOR)
+        .map_err(|e| e.at(s.metadata_offset))?;
     Ok((meta, bytes))
 }
 
@@ -291,28 +398,64 @@ fn read_index(src: &dyn ByteSource, opts: &ReadOptions) -> Result<Index> {
     let (header, header_bytes) = read_header(src)?;
     let trailer = read_trailer(src)?;
     if header.sections != trailer.sections {
-        return Err(Error::malformed(Code::Layout, format!("header says {:?}, trailer says {:?}", header.sections, trailer.sections)));
+        return Err(Error::malformed(
+            Code::Layout,
+            format!(
+                "header says {:?}, trailer says {:?}",
+                header.sections, trailer.sections
+            ),
+        ));
     }
     header.sections.check_tiling(src.len())?;
-    let (entries, dir_bytes) = read_directory(src, &header.sections, header.block_size(), Some(trailer.directory_crc))?;
+    let (entries, dir_bytes) = read_directory(
+        src,
+        &header.sections,
+        header.block_size(),
+        Some(trailer.directory_crc),
+    )?;
     let (metadata, meta_bytes) = read_metadata(src, &header, &trailer, &opts.limits)?;
     let computed = root_checksum(&header_bytes, &dir_bytes, &meta_bytes);
     if computed != trailer.root_checksum {
-        return Err(Error::new(ErrorKind::Checksum { code: Code::RootChecksum, what: "root", stored: trailer.root_checksum, computed }));
+        return Err(Error::new(ErrorKind::Checksum {
+            code: Code::RootChecksum,
+            what: "root",
+            stored: trailer.root_checksum,
+            computed,
+        }));
     }
-    Ok(Index { header, trailer, entries, metadata })
+    Ok(Index {
+        header,
+        trailer,
+        entries,
+        metadata,
+    })
 }
 
-fn load_proxies(src: &dyn ByteSource, entries: &[BlockEntry], opts: &ReadOptions) -> Result<Vec<ProxyRecord>> {
-    let resident: u64 = entries.iter().filter(|e| e.kind == BlockKind::Proxy).map(|e| u64::from(e.raw_length)).sum();
+fn load_proxies(
+    src: &dyn ByteSource,
+    entries: &[BlockEntry],
+    opts: &ReadOptions,
+) -> Result<Vec<ProxyRecord>> {
+    let resident: u64 = entries
+        .iter()
+        .filter(|e| e.kind == BlockKind::Proxy)
+        .map(|e| u64::from(e.raw_length))
+        .sum();
     if resident > opts.limits.max_resident_bytes {
-        return Err(Error::limit("resident proxies", resident, opts.limits.max_resident_bytes));
+        return Err(Error::limit(
+            "resident proxies",
+            resident,
+            opts.limits.max_resident_bytes,
+        ));
     }
-    let mut proxies = Vec::with_capacity((resident / PROXY_LEN as u64) as usize);
+    // Grown block by block: reserving the declared total up front would let a small file with
+    // lying directory entries claim up to the whole limit before any block proves itself.
+    let mut proxies = Vec::new();
     for (id, e) in (0u32..).zip(entries) {
         if e.kind == BlockKind::Proxy {
             let data = read_block_data(src, e, opts).map_err(|err| err.in_block(id))?;
-            let block = ProxyRecord::decode_block(&data, e.item_count as usize).map_err(|err| err.in_block(id))?;
+            let block = ProxyRecord::decode_block(&data, e.item_count as usize)
+                .map_err(|err| err.in_block(id))?;
             proxies.extend(block);
         }
     }

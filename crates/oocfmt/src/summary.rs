@@ -14,9 +14,20 @@ use crate::Reader;
 /// What one block holds, found by decoding it and checking its framing.
 #[derive(Clone, Debug, PartialEq)]
 pub enum BlockFacts {
-    Treelet { nodes: TreeletSummary, leaf_triangle_refs: u64 },
-    Triangle { list: u32, triangles: u32, vertices: u32, primaries: u32, max_material: Option<u16> },
-    Proxy { node_blocks: Vec<u32> },
+    Treelet {
+        nodes: TreeletSummary,
+        leaf_triangle_refs: u64,
+    },
+    Triangle {
+        list: u32,
+        triangles: u32,
+        vertices: u32,
+        primaries: u32,
+        max_material: Option<u16>,
+    },
+    Proxy {
+        node_blocks: Vec<u32>,
+    },
 }
 
 /// Decodes the framing of `raw` (block `id` with directory entry `e`) and checks every record
@@ -32,7 +43,10 @@ pub fn survey_block(e: &BlockEntry, raw: &[u8], attrs: Option<u16>) -> Result<Bl
                 }
                 Ok(())
             })?;
-            BlockFacts::Treelet { nodes, leaf_triangle_refs: refs }
+            BlockFacts::Treelet {
+                nodes,
+                leaf_triangle_refs: refs,
+            }
         }
         BlockKind::Triangle => {
             let b = TriangleBlock::parse(raw, attrs)?;
@@ -53,12 +67,20 @@ pub fn survey_block(e: &BlockEntry, raw: &[u8], attrs: Option<u16>) -> Result<Bl
         }
         BlockKind::Proxy => {
             let records = ProxyRecord::decode_block(raw, e.item_count as usize)?;
-            BlockFacts::Proxy { node_blocks: records.iter().map(|p| p.node_block).collect() }
+            BlockFacts::Proxy {
+                node_blocks: records.iter().map(|p| p.node_block).collect(),
+            }
         }
     };
     let items = facts.items();
     if items != u64::from(e.item_count) {
-        return bad(Code::EntryItemCount, format!("directory says {} items, the block holds {items}", e.item_count));
+        return bad(
+            Code::EntryItemCount,
+            format!(
+                "directory says {} items, the block holds {items}",
+                e.item_count
+            ),
+        );
     }
     Ok(facts)
 }
@@ -154,8 +176,13 @@ pub fn summarize(reader: &Reader) -> Result<Summary> {
         match e.kind {
             BlockKind::Treelet => {
                 let block = reader.read_block(id)?;
-                let facts = survey_block(e, &block.data, None).map_err(|err| err.in_block(id).in_file(reader.name()))?;
-                if let BlockFacts::Treelet { nodes, leaf_triangle_refs } = facts {
+                let facts = survey_block(e, &block.data, None)
+                    .map_err(|err| err.in_block(id).in_file(reader.name()))?;
+                if let BlockFacts::Treelet {
+                    nodes,
+                    leaf_triangle_refs,
+                } = facts
+                {
                     row.treelets += nodes.treelets;
                     row.basic_nodes += nodes.basic_nodes;
                     row.lod_nodes += nodes.lod_nodes;
@@ -177,7 +204,11 @@ pub fn summarize(reader: &Reader) -> Result<Summary> {
                 1 => "triangles".to_string(),
                 _ => "proxies".to_string(),
             };
-            row.ratio = if row.stored_bytes == 0 { 0.0 } else { row.raw_bytes as f64 / row.stored_bytes as f64 };
+            row.ratio = if row.stored_bytes == 0 {
+                0.0
+            } else {
+                row.raw_bytes as f64 / row.stored_bytes as f64
+            };
             row
         })
         .collect();
@@ -189,8 +220,16 @@ fn build_summary(reader: &Reader, levels: Vec<LevelRow>, leaf_refs: u64) -> Summ
     let m = reader.metadata();
     let sum = |f: fn(&LevelRow) -> u64| levels.iter().map(f).sum::<u64>();
     let tree_rows = levels.iter().filter(|r| r.level.parse::<u16>().is_ok());
-    let proxy_stored: u64 = levels.iter().filter(|r| r.level == "proxies").map(|r| r.stored_bytes).sum();
-    let proxy_raw: u64 = levels.iter().filter(|r| r.level == "proxies").map(|r| r.raw_bytes).sum();
+    let proxy_stored: u64 = levels
+        .iter()
+        .filter(|r| r.level == "proxies")
+        .map(|r| r.stored_bytes)
+        .sum();
+    let proxy_raw: u64 = levels
+        .iter()
+        .filter(|r| r.level == "proxies")
+        .map(|r| r.raw_bytes)
+        .sum();
     let blocks_stored = sum(|r| r.stored_bytes);
     let leaves = sum(|r| r.leaves);
     let triangles = m.counts.triangles;
@@ -224,9 +263,17 @@ fn build_summary(reader: &Reader, levels: Vec<LevelRow>, leaf_refs: u64) -> Summ
             lod_nodes: sum(|r| r.lod_nodes),
             leaves,
             leaf_triangle_refs: leaf_refs,
-            avg_triangles_per_leaf: if leaves == 0 { 0.0 } else { leaf_refs as f64 / leaves as f64 },
+            avg_triangles_per_leaf: if leaves == 0 {
+                0.0
+            } else {
+                leaf_refs as f64 / leaves as f64
+            },
             triangles,
-            bytes_per_triangle: if triangles == 0 { 0.0 } else { reader.file_len() as f64 / triangles as f64 },
+            bytes_per_triangle: if triangles == 0 {
+                0.0
+            } else {
+                reader.file_len() as f64 / triangles as f64
+            },
         },
         levels,
         metadata: m.clone(),

@@ -11,8 +11,8 @@ use crate::codec::Codec;
 use crate::directory::{BlockEntry, BlockKind, CodecId};
 use crate::error::{Error, Result};
 use crate::header::{
-    Header, SectionTable, COMPAT_LOD_VOXELS, COMPAT_PROXIES, DEFAULT_BLOCK_SIZE_LOG2, HEADER_LEN, MAX_BLOCK_SIZE_LOG2,
-    MIN_BLOCK_SIZE_LOG2, OFF_HEADER_CRC,
+    Header, SectionTable, COMPAT_LOD_VOXELS, COMPAT_PROXIES, DEFAULT_BLOCK_SIZE_LOG2, HEADER_LEN,
+    MAX_BLOCK_SIZE_LOG2, MIN_BLOCK_SIZE_LOG2, OFF_HEADER_CRC,
 };
 use crate::metadata::Metadata;
 use crate::trailer::Trailer;
@@ -37,7 +37,10 @@ pub struct WriteOptions {
 
 impl Default for WriteOptions {
     fn default() -> Self {
-        WriteOptions { block_size_log2: DEFAULT_BLOCK_SIZE_LOG2, codec: Codec::default() }
+        WriteOptions {
+            block_size_log2: DEFAULT_BLOCK_SIZE_LOG2,
+            codec: Codec::default(),
+        }
     }
 }
 
@@ -45,8 +48,12 @@ impl WriteOptions {
     /// Block size in bytes, which must be a power of two in 4 KiB ..= 1 MiB.
     pub fn with_block_size(mut self, bytes: u64) -> Result<Self> {
         let log2 = bytes.trailing_zeros();
-        if !bytes.is_power_of_two() || !(u32::from(MIN_BLOCK_SIZE_LOG2)..=u32::from(MAX_BLOCK_SIZE_LOG2)).contains(&log2) {
-            return Err(Error::parameter(format!("block size {bytes}: expected a power of two from 4096 to 1048576")));
+        if !bytes.is_power_of_two()
+            || !(u32::from(MIN_BLOCK_SIZE_LOG2)..=u32::from(MAX_BLOCK_SIZE_LOG2)).contains(&log2)
+        {
+            return Err(Error::parameter(format!(
+                "block size {bytes}: expected a power of two from 4096 to 1048576"
+            )));
         }
         self.block_size_log2 = log2 as u8;
         Ok(self)
@@ -67,13 +74,20 @@ pub struct EncodedBlock {
 }
 
 impl EncodedBlock {
-    pub fn encode(codec: Codec, kind: BlockKind, level: u16, item_count: u32, raw: &[u8]) -> Result<Self> {
+    pub fn encode(
+        codec: Codec,
+        kind: BlockKind,
+        level: u16,
+        item_count: u32,
+        raw: &[u8],
+    ) -> Result<Self> {
         let (codec, stored) = codec.encode(raw)?;
         Ok(EncodedBlock {
             kind,
             level,
             item_count,
-            raw_length: u32::try_from(raw.len()).map_err(|_| Error::parameter("block over 4 GiB"))?,
+            raw_length: u32::try_from(raw.len())
+                .map_err(|_| Error::parameter("block over 4 GiB"))?,
             codec,
             crc: crc32c(&stored),
             stored,
@@ -112,14 +126,25 @@ impl Writer {
 
 impl<F: OutputFile> Writer<F> {
     /// Like [`Writer::create`], wrapping the temporary file (used to inject faults in tests).
-    pub fn create_with(path: &Path, opts: WriteOptions, wrap: impl FnOnce(File) -> io::Result<F>) -> Result<Self> {
+    pub fn create_with(
+        path: &Path,
+        opts: WriteOptions,
+        wrap: impl FnOnce(File) -> io::Result<F>,
+    ) -> Result<Self> {
         if !(MIN_BLOCK_SIZE_LOG2..=MAX_BLOCK_SIZE_LOG2).contains(&opts.block_size_log2) {
-            return Err(Error::parameter(format!("block size 2^{} is outside 2^12 ..= 2^20", opts.block_size_log2)));
+            return Err(Error::parameter(format!(
+                "block size 2^{} is outside 2^12 ..= 2^20",
+                opts.block_size_log2
+            )));
         }
         let temp = temp_path(path)?;
-        let file = OpenOptions::new().write(true).create_new(true).open(&temp).map_err(|e| {
-            Error::io(e, 0).in_file(&std::sync::Arc::from(temp.display().to_string()))
-        })?;
+        let file = OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&temp)
+            .map_err(|e| {
+                Error::io(e, 0).in_file(&std::sync::Arc::from(temp.display().to_string()))
+            })?;
         let mut w = Writer {
             out: None,
             temp,
@@ -131,7 +156,8 @@ impl<F: OutputFile> Writer<F> {
             last_level: 0,
         };
         // A placeholder header; the real one is written by `finish`.
-        let started = wrap(file).and_then(|mut out| out.write_all(&[0u8; HEADER_LEN]).map(|()| out));
+        let started =
+            wrap(file).and_then(|mut out| out.write_all(&[0u8; HEADER_LEN]).map(|()| out));
         match started {
             Ok(out) => {
                 w.out = Some(out);
@@ -157,7 +183,13 @@ impl<F: OutputFile> Writer<F> {
     }
 
     /// Compresses and appends one block; returns its id.
-    pub fn write_block(&mut self, kind: BlockKind, level: u16, item_count: u32, raw: &[u8]) -> Result<u32> {
+    pub fn write_block(
+        &mut self,
+        kind: BlockKind,
+        level: u16,
+        item_count: u32,
+        raw: &[u8],
+    ) -> Result<u32> {
         self.check_block(kind, level, item_count, raw.len())?;
         let block = EncodedBlock::encode(self.codec, kind, level, item_count, raw)?;
         self.write_encoded(block)
@@ -181,7 +213,10 @@ impl<F: OutputFile> Writer<F> {
                 b.crc
             )));
         }
-        let id = u32::try_from(self.entries.len()).ok().filter(|&id| id < u32::MAX).ok_or_else(|| Error::parameter("too many blocks"))?;
+        let id = u32::try_from(self.entries.len())
+            .ok()
+            .filter(|&id| id < u32::MAX)
+            .ok_or_else(|| Error::parameter("too many blocks"))?;
         let entry = BlockEntry {
             offset: self.pos,
             stored_length: b.stored.len() as u32,
@@ -205,10 +240,19 @@ impl<F: OutputFile> Writer<F> {
         Ok(id)
     }
 
-    fn check_block(&self, kind: BlockKind, level: u16, item_count: u32, raw_len: usize) -> Result<()> {
+    fn check_block(
+        &self,
+        kind: BlockKind,
+        level: u16,
+        item_count: u32,
+        raw_len: usize,
+    ) -> Result<()> {
         let bs = self.block_size() as usize;
         if raw_len == 0 || raw_len > bs {
-            return Err(Error::parameter(format!("a {}-byte block does not fit the block size {bs}", raw_len)));
+            return Err(Error::parameter(format!(
+                "a {}-byte block does not fit the block size {bs}",
+                raw_len
+            )));
         }
         if item_count == 0 {
             return Err(Error::parameter("a block must hold at least one item"));
@@ -217,13 +261,18 @@ impl<F: OutputFile> Writer<F> {
             return Err(Error::parameter("only treelet blocks have a level"));
         }
         if kind == BlockKind::Treelet && level < self.last_level {
-            return Err(Error::parameter(format!("treelet level {level} after level {}", self.last_level)));
+            return Err(Error::parameter(format!(
+                "treelet level {level} after level {}",
+                self.last_level
+            )));
         }
         Ok(())
     }
 
     fn out_mut(&mut self) -> Result<&mut F> {
-        self.out.as_mut().ok_or_else(|| Error::parameter("the writer failed earlier and is closed"))
+        self.out
+            .as_mut()
+            .ok_or_else(|| Error::parameter("the writer failed earlier and is closed"))
     }
 
     /// Writes directory, metadata, trailer and header, makes the file durable and renames it
@@ -242,9 +291,12 @@ impl<F: OutputFile> Writer<F> {
             e.encode_into(&mut dir);
         }
         // Never write metadata that the reader would refuse.
-        metadata.check().map_err(|e| Error::parameter(e.kind.to_string()))?;
+        metadata
+            .check()
+            .map_err(|e| Error::parameter(e.kind.to_string()))?;
         let meta = metadata.encode()?;
-        let metadata_length = u32::try_from(meta.len()).map_err(|_| Error::parameter("metadata over 4 GiB"))?;
+        let metadata_length =
+            u32::try_from(meta.len()).map_err(|_| Error::parameter("metadata over 4 GiB"))?;
         let sections = SectionTable {
             directory_offset: self.pos,
             block_count: self.block_count(),
@@ -263,7 +315,12 @@ impl<F: OutputFile> Writer<F> {
         root.update(&header[..OFF_HEADER_CRC]);
         root.update(&dir);
         root.update(&meta);
-        let trailer = Trailer { sections, directory_crc: crc32c(&dir), metadata_crc: crc32c(&meta), root_checksum: root.finish() };
+        let trailer = Trailer {
+            sections,
+            directory_crc: crc32c(&dir),
+            metadata_crc: crc32c(&meta),
+            root_checksum: root.finish(),
+        };
         let tail_at = self.pos;
         let out = self.out_mut()?;
         let io = |e| Error::io(e, tail_at);
@@ -277,7 +334,8 @@ impl<F: OutputFile> Writer<F> {
         std::fs::rename(&self.temp, &self.target).map_err(|e| Error::io(e, 0))?;
         sync_parent(&self.target);
         Ok(WriteSummary {
-            file_length: sections.trailer_offset().unwrap_or(0) + crate::trailer::TRAILER_LEN as u64,
+            file_length: sections.trailer_offset().unwrap_or(0)
+                + crate::trailer::TRAILER_LEN as u64,
             block_count: sections.block_count,
             identity: trailer.root_checksum,
         })
@@ -307,7 +365,11 @@ fn temp_path(target: &Path) -> Result<PathBuf> {
         .file_name()
         .ok_or_else(|| Error::parameter(format!("{}: not a file path", target.display())))?;
     let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-    let temp_name = format!(".{}.{}-{n}.partial", name.to_string_lossy(), std::process::id());
+    let temp_name = format!(
+        ".{}.{}-{n}.partial",
+        name.to_string_lossy(),
+        std::process::id()
+    );
     Ok(target.with_file_name(temp_name))
 }
 
@@ -315,7 +377,11 @@ fn temp_path(target: &Path) -> Result<PathBuf> {
 fn sync_parent(target: &Path) {
     #[cfg(unix)]
     if let Some(dir) = target.parent() {
-        let dir = if dir.as_os_str().is_empty() { Path::new(".") } else { dir };
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
         if let Ok(d) = File::open(dir) {
             let _ = d.sync_all();
         }

@@ -11,7 +11,9 @@ use std::sync::{Mutex, OnceLock};
 use common::*;
 use oocfmt::metadata::TreeletRef;
 use oocfmt::verify::{verify, Depth, VerifyOptions};
-use oocfmt::{directory, header, trailer, Checksums, Code, Limits, Metadata, ReadOptions, Reader, Severity};
+use oocfmt::{
+    directory, header, trailer, Checksums, Code, Limits, Metadata, ReadOptions, Reader, Severity,
+};
 use proptest::prelude::*;
 use proptest::sample::Index;
 
@@ -63,13 +65,21 @@ fn files() -> &'static [NamedFile] {
     static FILES: OnceLock<Vec<NamedFile>> = OnceLock::new();
     FILES.get_or_init(|| {
         let r = all_files();
-        assert!(r.is_ok(), "cannot build the fixtures: {:?}", r.as_ref().err().map(|e| e.to_string()));
+        assert!(
+            r.is_ok(),
+            "cannot build the fixtures: {:?}",
+            r.as_ref().err().map(|e| e.to_string())
+        );
         r.unwrap_or_default()
     })
 }
 
 fn file(name: &str) -> TestResult<Vec<u8>> {
-    files().iter().find(|f| f.name == name).map(|f| f.bytes.clone()).ok_or_else(|| format!("no file {name}").into())
+    files()
+        .iter()
+        .find(|f| f.name == name)
+        .map(|f| f.bytes.clone())
+        .ok_or_else(|| format!("no file {name}").into())
 }
 
 fn full() -> VerifyOptions {
@@ -82,11 +92,15 @@ fn read_whole(b: &[u8], opts: ReadOptions) -> oocfmt::Result<()> {
 }
 
 fn reader_code(b: &[u8]) -> Option<Code> {
-    read_whole(b, ReadOptions::default()).err().map(|e| e.code())
+    read_whole(b, ReadOptions::default())
+        .err()
+        .map(|e| e.code())
 }
 
 fn workers() -> usize {
-    std::thread::available_parallelism().map_or(2, |n| n.get()).clamp(1, 4)
+    std::thread::available_parallelism()
+        .map_or(2, |n| n.get())
+        .clamp(1, 4)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -97,9 +111,18 @@ fn every_truncation_is_rejected_in_memory() -> TestResult {
     for f in files() {
         for len in 0..f.bytes.len() {
             let cut = &f.bytes[..len];
-            assert!(open_bytes(cut, ReadOptions::default()).is_err(), "{}: open accepted the first {len} bytes", f.name);
+            assert!(
+                open_bytes(cut, ReadOptions::default()).is_err(),
+                "{}: open accepted the first {len} bytes",
+                f.name
+            );
             let r = verify_bytes(cut, &full())?;
-            assert!(has_error(&r), "{}: verify accepted the first {len} bytes: {:?}", f.name, r.issues);
+            assert!(
+                has_error(&r),
+                "{}: verify accepted the first {len} bytes: {:?}",
+                f.name,
+                r.issues
+            );
         }
     }
     Ok(())
@@ -114,8 +137,16 @@ fn every_truncation_is_rejected_on_disk_by_both_sources() -> TestResult {
         let handle = std::fs::OpenOptions::new().write(true).open(&path)?;
         for len in (0..f.bytes.len()).rev() {
             handle.set_len(len as u64)?;
-            assert!(Reader::open(&path, ReadOptions::default()).is_err(), "{}: pread accepted {len} bytes", f.name);
-            assert!(Reader::open_mmap(&path, ReadOptions::default()).is_err(), "{}: mmap accepted {len} bytes", f.name);
+            assert!(
+                Reader::open(&path, ReadOptions::default()).is_err(),
+                "{}: pread accepted {len} bytes",
+                f.name
+            );
+            assert!(
+                Reader::open_mmap(&path, ReadOptions::default()).is_err(),
+                "{}: mmap accepted {len} bytes",
+                f.name
+            );
         }
     }
     Ok(())
@@ -139,7 +170,11 @@ fn appended_bytes_are_rejected() -> TestResult {
         for extra in [&[0u8][..], b"\n", b"OCFEND\r\n"] {
             let mut b = f.bytes.clone();
             b.extend_from_slice(extra);
-            assert!(open_bytes(&b, ReadOptions::default()).is_err(), "{}", f.name);
+            assert!(
+                open_bytes(&b, ReadOptions::default()).is_err(),
+                "{}",
+                f.name
+            );
             assert!(has_error(&verify_bytes(&b, &full())?), "{}", f.name);
         }
     }
@@ -160,7 +195,9 @@ fn check_flip(b: &mut [u8], bit: usize) -> Option<String> {
         Err(e) => Some(format!("bit {bit}: verify failed to run: {e}")),
     };
     let verdict = verdict.or_else(|| {
-        read_whole(&owned, ReadOptions::default()).is_ok().then(|| format!("bit {bit}: the reader accepts the file and every block"))
+        read_whole(&owned, ReadOptions::default())
+            .is_ok()
+            .then(|| format!("bit {bit}: the reader accepts the file and every block"))
     });
     b[bit / 8] ^= 1 << (bit % 8);
     verdict
@@ -176,13 +213,28 @@ fn every_single_bit_flip_is_detected() -> TestResult {
                 .map(|t| {
                     s.spawn(move || {
                         let mut b = f.bytes.clone();
-                        (t..bits).step_by(n).filter_map(|bit| check_flip(&mut b, bit)).collect::<Vec<_>>()
+                        (t..bits)
+                            .step_by(n)
+                            .filter_map(|bit| check_flip(&mut b, bit))
+                            .collect::<Vec<_>>()
                     })
                 })
                 .collect();
-            handles.into_iter().flat_map(|h| h.join().unwrap_or_else(|_| vec!["a worker panicked".to_string()])).collect()
+            handles
+                .into_iter()
+                .flat_map(|h| {
+                    h.join()
+                        .unwrap_or_else(|_| vec!["a worker panicked".to_string()])
+                })
+                .collect()
         });
-        assert!(problems.is_empty(), "{}: {} undetected flips, e.g. {:?}", f.name, problems.len(), &problems[..problems.len().min(8)]);
+        assert!(
+            problems.is_empty(),
+            "{}: {} undetected flips, e.g. {:?}",
+            f.name,
+            problems.len(),
+            &problems[..problems.len().min(8)]
+        );
     }
     Ok(())
 }
@@ -201,16 +253,32 @@ fn refused_without_allocating(what: &str, b: &[u8], expect: &[Code]) -> TestResu
     PEAK.store(0, Ordering::SeqCst);
     let mem = read_whole(b, ReadOptions::default());
     let pread = Reader::open(&path, ReadOptions::default()).and_then(|r| read_all_blocks(&r));
-    let skip = read_whole(b, ReadOptions { checksums: Checksums::Skip, ..ReadOptions::default() });
+    let skip = read_whole(
+        b,
+        ReadOptions {
+            checksums: Checksums::Skip,
+            ..ReadOptions::default()
+        },
+    );
     let report = verify_bytes(b, &deep())?;
     let peak = PEAK.load(Ordering::SeqCst);
-    assert!(peak <= limit, "{what}: an allocation of {peak} bytes (limit {limit})");
+    assert!(
+        peak <= limit,
+        "{what}: an allocation of {peak} bytes (limit {limit})"
+    );
     for r in [&mem, &pread, &skip] {
         let code = r.as_ref().err().map(|e| e.code());
-        assert!(code.is_some_and(|c| expect.contains(&c)), "{what}: reader gave {code:?}, expected one of {expect:?}");
+        assert!(
+            code.is_some_and(|c| expect.contains(&c)),
+            "{what}: reader gave {code:?}, expected one of {expect:?}"
+        );
     }
     assert!(has_error(&report), "{what}: verify says valid");
-    assert!(report.issues.iter().any(|i| expect.contains(&i.code)), "{what}: verify found {:?}", codes(&report));
+    assert!(
+        report.issues.iter().any(|i| expect.contains(&i.code)),
+        "{what}: verify found {:?}",
+        codes(&report)
+    );
     Ok(())
 }
 
@@ -222,12 +290,48 @@ fn huge_section_fields_are_refused_without_allocating() -> TestResult {
     use trailer as t;
     for f in files() {
         let cases: [(&str, usize, usize, u64, bool); 6] = [
-            ("directory_offset", h::OFF_DIRECTORY_OFFSET, t::OFF_DIRECTORY_OFFSET, HUGE, true),
-            ("metadata_offset", h::OFF_METADATA_OFFSET, t::OFF_METADATA_OFFSET, HUGE, true),
-            ("block_count", h::OFF_BLOCK_COUNT, t::OFF_BLOCK_COUNT, u64::from(u32::MAX), false),
-            ("metadata_length", h::OFF_METADATA_LENGTH, t::OFF_METADATA_LENGTH, u64::from(u32::MAX), false),
-            ("directory_offset at the end", h::OFF_DIRECTORY_OFFSET, t::OFF_DIRECTORY_OFFSET, u64::MAX - 7, true),
-            ("metadata_offset at the end", h::OFF_METADATA_OFFSET, t::OFF_METADATA_OFFSET, u64::MAX - 7, true),
+            (
+                "directory_offset",
+                h::OFF_DIRECTORY_OFFSET,
+                t::OFF_DIRECTORY_OFFSET,
+                HUGE,
+                true,
+            ),
+            (
+                "metadata_offset",
+                h::OFF_METADATA_OFFSET,
+                t::OFF_METADATA_OFFSET,
+                HUGE,
+                true,
+            ),
+            (
+                "block_count",
+                h::OFF_BLOCK_COUNT,
+                t::OFF_BLOCK_COUNT,
+                u64::from(u32::MAX),
+                false,
+            ),
+            (
+                "metadata_length",
+                h::OFF_METADATA_LENGTH,
+                t::OFF_METADATA_LENGTH,
+                u64::from(u32::MAX),
+                false,
+            ),
+            (
+                "directory_offset at the end",
+                h::OFF_DIRECTORY_OFFSET,
+                t::OFF_DIRECTORY_OFFSET,
+                u64::MAX - 7,
+                true,
+            ),
+            (
+                "metadata_offset at the end",
+                h::OFF_METADATA_OFFSET,
+                t::OFF_METADATA_OFFSET,
+                u64::MAX - 7,
+                true,
+            ),
         ];
         for (what, hat, tat, v, wide) in cases {
             // Header and trailer agree (so only the layout rule can refuse it), then only one.
@@ -239,7 +343,15 @@ fn huge_section_fields_are_refused_without_allocating() -> TestResult {
                     set_section_u32(&mut b, hat, tat, u32::try_from(v)?);
                 }
                 let b = reseal(&b)?;
-                refused_without_allocating(&format!("{}: {what} = {v:#x} (trailer too: {})", f.name, tat.is_some()), &b, &[Code::Layout])?;
+                refused_without_allocating(
+                    &format!(
+                        "{}: {what} = {v:#x} (trailer too: {})",
+                        f.name,
+                        tat.is_some()
+                    ),
+                    &b,
+                    &[Code::Layout],
+                )?;
             }
         }
     }
@@ -255,11 +367,41 @@ fn huge_directory_entry_fields_are_refused_without_allocating() -> TestResult {
             let at = dir + i * d::ENTRY_LEN;
             let cases: [(&str, usize, u64, bool, &[Code]); 6] = [
                 ("offset", d::OFF_OFFSET, HUGE, true, &[Code::EntryOffset]),
-                ("offset past the file", d::OFF_OFFSET, f.bytes.len() as u64, true, &[Code::EntryOffset]),
-                ("stored_length", d::OFF_STORED_LENGTH, u64::from(u32::MAX), false, &[Code::EntryLength]),
-                ("raw_length", d::OFF_RAW_LENGTH, u64::from(u32::MAX), false, &[Code::EntryLength]),
-                ("raw_length 2 MiB", d::OFF_RAW_LENGTH, 2 << 20, false, &[Code::EntryLength]),
-                ("item_count", d::OFF_ITEM_COUNT, u64::from(u32::MAX), false, &[Code::EntryItemCount, Code::ProxyLayout]),
+                (
+                    "offset past the file",
+                    d::OFF_OFFSET,
+                    f.bytes.len() as u64,
+                    true,
+                    &[Code::EntryOffset],
+                ),
+                (
+                    "stored_length",
+                    d::OFF_STORED_LENGTH,
+                    u64::from(u32::MAX),
+                    false,
+                    &[Code::EntryLength],
+                ),
+                (
+                    "raw_length",
+                    d::OFF_RAW_LENGTH,
+                    u64::from(u32::MAX),
+                    false,
+                    &[Code::EntryLength],
+                ),
+                (
+                    "raw_length 2 MiB",
+                    d::OFF_RAW_LENGTH,
+                    2 << 20,
+                    false,
+                    &[Code::EntryLength],
+                ),
+                (
+                    "item_count",
+                    d::OFF_ITEM_COUNT,
+                    u64::from(u32::MAX),
+                    false,
+                    &[Code::EntryItemCount, Code::ProxyLayout],
+                ),
             ];
             for (what, off, v, wide, expect) in cases {
                 let mut b = f.bytes.clone();
@@ -278,7 +420,11 @@ fn huge_directory_entry_fields_are_refused_without_allocating() -> TestResult {
                     let _ = read_whole(&b, ReadOptions::default());
                     let report = verify_bytes(&b, &deep())?;
                     assert!(PEAK.load(Ordering::SeqCst) <= (1 << 20) + b.len(), "{what}");
-                    assert!(report.issues.iter().any(|i| expect.contains(&i.code)), "{what}: {:?}", codes(&report));
+                    assert!(
+                        report.issues.iter().any(|i| expect.contains(&i.code)),
+                        "{what}: {:?}",
+                        codes(&report)
+                    );
                 } else {
                     refused_without_allocating(&what, &b, expect)?;
                 }
@@ -294,7 +440,10 @@ const VARINT_2_60: [u8; 9] = [0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x80, 0x
 /// The index of the first byte where the encodings of two metadata values differ.
 fn first_difference(a: &Metadata, b: &Metadata) -> TestResult<usize> {
     let (x, y) = (a.encode()?, b.encode()?);
-    x.iter().zip(&y).position(|(p, q)| p != q).ok_or_else(|| "encodings do not differ".into())
+    x.iter()
+        .zip(&y)
+        .position(|(p, q)| p != q)
+        .ok_or_else(|| "encodings do not differ".into())
 }
 
 #[test]
@@ -324,13 +473,34 @@ fn huge_metadata_lengths_are_refused_without_allocating() -> TestResult {
         evil.extend_from_slice(&VARINT_2_60);
         evil.extend_from_slice(&bytes[at + 1..]);
         let file = with_metadata(&b, &evil)?;
-        refused_without_allocating(&format!("metadata {what} length 2^60"), &file, &[Code::MetadataDecode])?;
+        refused_without_allocating(
+            &format!("metadata {what} length 2^60"),
+            &file,
+            &[Code::MetadataDecode],
+        )?;
     }
     // A metadata length over the configured limit is refused before it is read.
-    let small = Limits { max_metadata_bytes: 16, ..Limits::default() };
-    let e = open_bytes(&b, ReadOptions { limits: small, ..ReadOptions::default() }).err().map(|e| e.code());
+    let small = Limits {
+        max_metadata_bytes: 16,
+        ..Limits::default()
+    };
+    let e = open_bytes(
+        &b,
+        ReadOptions {
+            limits: small,
+            ..ReadOptions::default()
+        },
+    )
+    .err()
+    .map(|e| e.code());
     assert_eq!(e, Some(Code::MetadataLimit));
-    let r = verify_bytes(&b, &VerifyOptions { limits: small, ..VerifyOptions::default() })?;
+    let r = verify_bytes(
+        &b,
+        &VerifyOptions {
+            limits: small,
+            ..VerifyOptions::default()
+        },
+    )?;
     assert!(r.has(Code::MetadataLimit) && !r.valid, "{:?}", r.issues);
     Ok(())
 }
@@ -345,9 +515,17 @@ fn huge_counts_inside_uncompressed_blocks_are_refused_without_allocating() -> Te
         let at = usize::try_from(e.offset)?;
         let fields: &[(usize, Code)] = match e.kind {
             // treelet_count, node_bytes, voxel_bytes
-            oocfmt::BlockKind::Treelet => &[(0, Code::TreeletLayout), (4, Code::TreeletLayout), (8, Code::TreeletLayout)],
+            oocfmt::BlockKind::Treelet => &[
+                (0, Code::TreeletLayout),
+                (4, Code::TreeletLayout),
+                (8, Code::TreeletLayout),
+            ],
             // list_count, triangle_count, vertex_count
-            oocfmt::BlockKind::Triangle => &[(0, Code::TriangleLayout), (4, Code::TriangleLayout), (8, Code::TriangleLayout)],
+            oocfmt::BlockKind::Triangle => &[
+                (0, Code::TriangleLayout),
+                (4, Code::TriangleLayout),
+                (8, Code::TriangleLayout),
+            ],
             oocfmt::BlockKind::Proxy => &[],
         };
         for &(off, code) in fields {
@@ -355,7 +533,11 @@ fn huge_counts_inside_uncompressed_blocks_are_refused_without_allocating() -> Te
                 let mut m = b.clone();
                 put_u32(&mut m, at + off, v);
                 let m = props::reseal_with_blocks(&m).ok_or("reseal")?;
-                refused_without_allocating(&format!("{:?} block field {off} = {v:#x}", e.kind), &m, &[code])?;
+                refused_without_allocating(
+                    &format!("{:?} block field {off} = {v:#x}", e.kind),
+                    &m,
+                    &[code],
+                )?;
             }
         }
     }
@@ -377,11 +559,20 @@ fn overlapping_gapped_and_outside_blocks_are_refused() -> TestResult {
             cases.push((format!("block {i} one byte late"), vec![(i, o + 1)]));
             cases.push((format!("block {i} one byte early"), vec![(i, o - 1)]));
             cases.push((format!("block {i} at the directory"), vec![(i, dir as u64)]));
-            cases.push((format!("block {i} past the end"), vec![(i, f.bytes.len() as u64 + 64)]));
+            cases.push((
+                format!("block {i} past the end"),
+                vec![(i, f.bytes.len() as u64 + 64)],
+            ));
             cases.push((format!("block {i} inside the header"), vec![(i, 0)]));
             if i > 0 {
-                cases.push((format!("block {i} overlaps block {}", i - 1), vec![(i, offset_of(i - 1))]));
-                cases.push((format!("blocks {} and {i} swapped", i - 1), vec![(i - 1, o), (i, offset_of(i - 1))]));
+                cases.push((
+                    format!("block {i} overlaps block {}", i - 1),
+                    vec![(i, offset_of(i - 1))],
+                ));
+                cases.push((
+                    format!("blocks {} and {i} swapped", i - 1),
+                    vec![(i - 1, o), (i, offset_of(i - 1))],
+                ));
             }
         }
         for (what, edits) in cases {
@@ -391,18 +582,40 @@ fn overlapping_gapped_and_outside_blocks_are_refused() -> TestResult {
             }
             let b = reseal(&b)?;
             let code = reader_code(&b);
-            assert!(matches!(code, Some(Code::EntryOffset | Code::Layout)), "{}: {what}: reader gave {code:?}", f.name);
+            assert!(
+                matches!(code, Some(Code::EntryOffset | Code::Layout)),
+                "{}: {what}: reader gave {code:?}",
+                f.name
+            );
             let r = verify_bytes(&b, &full())?;
-            assert!(r.has(Code::EntryOffset) || r.has(Code::Layout), "{}: {what}: {:?}", f.name, codes(&r));
-            assert!(!r.has(Code::DirectoryChecksum) && !r.has(Code::RootChecksum), "{}: {what}: re-seal failed", f.name);
+            assert!(
+                r.has(Code::EntryOffset) || r.has(Code::Layout),
+                "{}: {what}: {:?}",
+                f.name,
+                codes(&r)
+            );
+            assert!(
+                !r.has(Code::DirectoryChecksum) && !r.has(Code::RootChecksum),
+                "{}: {what}: re-seal failed",
+                f.name
+            );
         }
         // The directory itself one byte off: header and trailer agree, the regions do not tile.
         if count > 0 {
             let mut b = f.bytes.clone();
             let d = get_u64(&b, header::OFF_DIRECTORY_OFFSET);
-            set_section_u64(&mut b, header::OFF_DIRECTORY_OFFSET, Some(trailer::OFF_DIRECTORY_OFFSET), d - 1);
+            set_section_u64(
+                &mut b,
+                header::OFF_DIRECTORY_OFFSET,
+                Some(trailer::OFF_DIRECTORY_OFFSET),
+                d - 1,
+            );
             let b = reseal(&b)?;
-            assert!(matches!(reader_code(&b), Some(Code::Layout | Code::EntryOffset)), "{}", f.name);
+            assert!(
+                matches!(reader_code(&b), Some(Code::Layout | Code::EntryOffset)),
+                "{}",
+                f.name
+            );
         }
     }
     Ok(())
@@ -432,9 +645,19 @@ fn an_unknown_incompatible_feature_is_refused() -> TestResult {
             let mut b = f.bytes.clone();
             put_u64(&mut b, header::OFF_INCOMPAT, 1u64 << bit);
             let b = reseal(&b)?;
-            assert_eq!(reader_code(&b), Some(Code::HeaderFeatureUnsupported), "{} bit {bit}", f.name);
+            assert_eq!(
+                reader_code(&b),
+                Some(Code::HeaderFeatureUnsupported),
+                "{} bit {bit}",
+                f.name
+            );
             let r = verify_bytes(&b, &deep())?;
-            assert!(r.has(Code::HeaderFeatureUnsupported) && !r.valid, "{}: {:?}", f.name, r.issues);
+            assert!(
+                r.has(Code::HeaderFeatureUnsupported) && !r.valid,
+                "{}: {:?}",
+                f.name,
+                r.issues
+            );
         }
     }
     Ok(())
@@ -451,8 +674,16 @@ fn an_unknown_compatible_feature_is_only_noted() -> TestResult {
         read_all_blocks(&r)?;
         let rep = verify_bytes(&b, &deep())?;
         assert!(rep.valid, "{}: {:?}", f.name, rep.issues);
-        let i = rep.issues.iter().find(|i| i.code == Code::HeaderFeatureUnknown);
-        assert!(i.is_some_and(|i| i.severity == Severity::Info), "{}: {:?}", f.name, rep.issues);
+        let i = rep
+            .issues
+            .iter()
+            .find(|i| i.code == Code::HeaderFeatureUnknown);
+        assert!(
+            i.is_some_and(|i| i.severity == Severity::Info),
+            "{}: {:?}",
+            f.name,
+            rep.issues
+        );
     }
     Ok(())
 }
@@ -466,13 +697,34 @@ fn a_newer_major_version_is_refused_and_named() -> TestResult {
             // Unsealed, the header CRC is wrong too: the version must be reported first.
             let b = if sealed { reseal(&b)? } else { b };
             let e = read_whole(&b, ReadOptions::default()).err();
-            assert_eq!(e.as_ref().map(|e| e.code()), Some(Code::HeaderVersionUnsupported), "{} major {major}", f.name);
+            assert_eq!(
+                e.as_ref().map(|e| e.code()),
+                Some(Code::HeaderVersionUnsupported),
+                "{} major {major}",
+                f.name
+            );
             let msg = e.map(|e| e.to_string()).unwrap_or_default();
-            assert!(msg.contains(&format!("{major}.0")), "{}: message does not name version {major}.0: {msg}", f.name);
+            assert!(
+                msg.contains(&format!("{major}.0")),
+                "{}: message does not name version {major}.0: {msg}",
+                f.name
+            );
             let r = verify_bytes(&b, &deep())?;
             assert!(!r.valid, "{}", f.name);
-            assert_eq!(codes(&r), vec![Code::HeaderVersionUnsupported], "{}: {:?}", f.name, r.issues);
-            assert!(r.issues.iter().all(|i| i.message.contains(&format!("{major}.0"))), "{}", f.name);
+            assert_eq!(
+                codes(&r),
+                vec![Code::HeaderVersionUnsupported],
+                "{}: {:?}",
+                f.name,
+                r.issues
+            );
+            assert!(
+                r.issues
+                    .iter()
+                    .all(|i| i.message.contains(&format!("{major}.0"))),
+                "{}",
+                f.name
+            );
         }
     }
     Ok(())
@@ -497,13 +749,27 @@ fn a_newer_minor_version_with_trailing_metadata_still_reads() -> TestResult {
         let rep = verify_bytes(&newer, &deep())?;
         assert!(rep.valid, "{}: {:?}", f.name, rep.issues);
         let i = rep.issues.iter().find(|i| i.code == Code::HeaderMinorNewer);
-        assert!(i.is_some_and(|i| i.severity == Severity::Info), "{}: {:?}", f.name, rep.issues);
+        assert!(
+            i.is_some_and(|i| i.severity == Severity::Info),
+            "{}: {:?}",
+            f.name,
+            rep.issues
+        );
 
         // The same trailing bytes at minor 0 are an error.
         assert_eq!(reader_code(&base), Some(Code::MetadataDecode), "{}", f.name);
         let rep = verify_bytes(&base, &full())?;
-        assert!(rep.has(Code::MetadataDecode) && !rep.valid, "{}: {:?}", f.name, rep.issues);
-        assert!(!rep.has(Code::MetadataChecksum) && !rep.has(Code::RootChecksum), "{}: re-seal failed", f.name);
+        assert!(
+            rep.has(Code::MetadataDecode) && !rep.valid,
+            "{}: {:?}",
+            f.name,
+            rep.issues
+        );
+        assert!(
+            !rep.has(Code::MetadataChecksum) && !rep.has(Code::RootChecksum),
+            "{}: re-seal failed",
+            f.name
+        );
 
         // And a newer minor without trailing bytes is fine too.
         let mut plain = f.bytes.clone();
@@ -525,12 +791,29 @@ fn entry_at(b: &[u8], i: usize) -> usize {
 
 /// Applies `edit` to `name`, re-seals every checksum (blocks included) and checks that both the
 /// reader and verify (at `depth`) report `code`.
-fn expect_code(name: &str, what: &str, edit: Edit, code: Code, depth: Depth, reader_too: bool) -> TestResult {
+fn expect_code(
+    name: &str,
+    what: &str,
+    edit: Edit,
+    code: Code,
+    depth: Depth,
+    reader_too: bool,
+) -> TestResult {
     let mut b = file(name)?;
     edit(&mut b);
     let b = props::reseal_with_blocks(&b).ok_or("reseal")?;
-    let r = verify_bytes(&b, &VerifyOptions { depth, ..VerifyOptions::default() })?;
-    assert!(r.has(code), "{name}: {what}: verify found {:?}, not {code}", r.issues);
+    let r = verify_bytes(
+        &b,
+        &VerifyOptions {
+            depth,
+            ..VerifyOptions::default()
+        },
+    )?;
+    assert!(
+        r.has(code),
+        "{name}: {what}: verify found {:?}, not {code}",
+        r.issues
+    );
     if code.severity() == Severity::Error {
         assert!(!r.valid, "{name}: {what}");
     }
@@ -546,27 +829,170 @@ fn header_and_directory_rules_hold_on_their_own() -> TestResult {
     let q = "fx-quad-none";
     let d = "fx-deep-zstd";
     let cases: Vec<(&str, &str, Edit, Code)> = vec![
-        (q, "reserved header byte 13", Box::new(|b: &mut Vec<u8>| b[header::OFF_RESERVED_A] = 1), Code::HeaderReserved),
-        (q, "reserved header byte 15", Box::new(|b: &mut Vec<u8>| b[header::OFF_RESERVED_A + 2] = 0x80), Code::HeaderReserved),
-        (q, "reserved header word", Box::new(|b: &mut Vec<u8>| put_u32(b, header::OFF_RESERVED_B, 1)), Code::HeaderReserved),
-        (q, "block size 2^21", Box::new(|b: &mut Vec<u8>| b[header::OFF_BLOCK_SIZE_LOG2] = 21), Code::HeaderBlockSize),
-        (q, "block size 2^11", Box::new(|b: &mut Vec<u8>| b[header::OFF_BLOCK_SIZE_LOG2] = 11), Code::HeaderBlockSize),
-        (q, "magic", Box::new(|b: &mut Vec<u8>| b[1] = b'o'), Code::HeaderMagic),
-        (q, "end magic", Box::new(|b: &mut Vec<u8>| { let n = b.len(); b[n - 1] = b'\r' }), Code::TrailerMagic),
-        (q, "unknown kind", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 1); b[e + directory::OFF_KIND] = 4 }), Code::EntryKind),
-        (q, "kind 0", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 0); b[e + directory::OFF_KIND] = 0 }), Code::EntryKind),
-        (q, "unknown codec", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 1); b[e + directory::OFF_CODEC] = 3 }), Code::EntryCodec),
-        (q, "reserved entry word", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 0); put_u32(b, e + directory::OFF_RESERVED, 1 << 31) }), Code::EntryReserved),
-        (q, "raw over the block size", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 0); put_u32(b, e + directory::OFF_RAW_LENGTH, 4097) }), Code::EntryLength),
-        (q, "codec none with stored != raw", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 0); let r = get_u32(b, e + directory::OFF_RAW_LENGTH); put_u32(b, e + directory::OFF_RAW_LENGTH, r + 1) }), Code::EntryLength),
-        (q, "raw length 0", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 0); put_u32(b, e + directory::OFF_RAW_LENGTH, 0) }), Code::EntryLength),
-        (q, "codec lz4 with stored == raw", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 0); b[e + directory::OFF_CODEC] = 1 }), Code::EntryLength),
-        (q, "level on a triangle block", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 1); put_u16(b, e + directory::OFF_LEVEL, 1) }), Code::EntryLevel),
-        (d, "level on a proxy block", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 2); put_u16(b, e + directory::OFF_LEVEL, 3) }), Code::EntryLevel),
-        (d, "treelet levels out of order", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 5); put_u16(b, e + directory::OFF_LEVEL, 0) }), Code::EntryLevel),
-        (q, "item count 0", Box::new(|b: &mut Vec<u8>| { let e = entry_at(b, 1); put_u32(b, e + directory::OFF_ITEM_COUNT, 0) }), Code::EntryItemCount),
+        (
+            q,
+            "reserved header byte 13",
+            Box::new(|b: &mut Vec<u8>| b[header::OFF_RESERVED_A] = 1),
+            Code::HeaderReserved,
+        ),
+        (
+            q,
+            "reserved header byte 15",
+            Box::new(|b: &mut Vec<u8>| b[header::OFF_RESERVED_A + 2] = 0x80),
+            Code::HeaderReserved,
+        ),
+        (
+            q,
+            "reserved header word",
+            Box::new(|b: &mut Vec<u8>| put_u32(b, header::OFF_RESERVED_B, 1)),
+            Code::HeaderReserved,
+        ),
+        (
+            q,
+            "block size 2^21",
+            Box::new(|b: &mut Vec<u8>| b[header::OFF_BLOCK_SIZE_LOG2] = 21),
+            Code::HeaderBlockSize,
+        ),
+        (
+            q,
+            "block size 2^11",
+            Box::new(|b: &mut Vec<u8>| b[header::OFF_BLOCK_SIZE_LOG2] = 11),
+            Code::HeaderBlockSize,
+        ),
+        (
+            q,
+            "magic",
+            Box::new(|b: &mut Vec<u8>| b[1] = b'o'),
+            Code::HeaderMagic,
+        ),
+        (
+            q,
+            "end magic",
+            Box::new(|b: &mut Vec<u8>| {
+                let n = b.len();
+                b[n - 1] = b'\r'
+            }),
+            Code::TrailerMagic,
+        ),
+        (
+            q,
+            "unknown kind",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 1);
+                b[e + directory::OFF_KIND] = 4
+            }),
+            Code::EntryKind,
+        ),
+        (
+            q,
+            "kind 0",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 0);
+                b[e + directory::OFF_KIND] = 0
+            }),
+            Code::EntryKind,
+        ),
+        (
+            q,
+            "unknown codec",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 1);
+                b[e + directory::OFF_CODEC] = 3
+            }),
+            Code::EntryCodec,
+        ),
+        (
+            q,
+            "reserved entry word",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 0);
+                put_u32(b, e + directory::OFF_RESERVED, 1 << 31)
+            }),
+            Code::EntryReserved,
+        ),
+        (
+            q,
+            "raw over the block size",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 0);
+                put_u32(b, e + directory::OFF_RAW_LENGTH, 4097)
+            }),
+            Code::EntryLength,
+        ),
+        (
+            q,
+            "codec none with stored != raw",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 0);
+                let r = get_u32(b, e + directory::OFF_RAW_LENGTH);
+                put_u32(b, e + directory::OFF_RAW_LENGTH, r + 1)
+            }),
+            Code::EntryLength,
+        ),
+        (
+            q,
+            "raw length 0",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 0);
+                put_u32(b, e + directory::OFF_RAW_LENGTH, 0)
+            }),
+            Code::EntryLength,
+        ),
+        (
+            q,
+            "codec lz4 with stored == raw",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 0);
+                b[e + directory::OFF_CODEC] = 1
+            }),
+            Code::EntryLength,
+        ),
+        (
+            q,
+            "level on a triangle block",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 1);
+                put_u16(b, e + directory::OFF_LEVEL, 1)
+            }),
+            Code::EntryLevel,
+        ),
+        (
+            d,
+            "level on a proxy block",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 2);
+                put_u16(b, e + directory::OFF_LEVEL, 3)
+            }),
+            Code::EntryLevel,
+        ),
+        (
+            d,
+            "treelet levels out of order",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 5);
+                put_u16(b, e + directory::OFF_LEVEL, 0)
+            }),
+            Code::EntryLevel,
+        ),
+        (
+            q,
+            "item count 0",
+            Box::new(|b: &mut Vec<u8>| {
+                let e = entry_at(b, 1);
+                put_u32(b, e + directory::OFF_ITEM_COUNT, 0)
+            }),
+            Code::EntryItemCount,
+        ),
         // Byte 48 of the metadata is the tag of `root: Option<_>`, after the 48-byte scene.
-        (q, "metadata option tag 7", Box::new(|b: &mut Vec<u8>| { let at = get_u64(b, header::OFF_METADATA_OFFSET) as usize; b[at + 48] = 7 }), Code::MetadataDecode),
+        (
+            q,
+            "metadata option tag 7",
+            Box::new(|b: &mut Vec<u8>| {
+                let at = get_u64(b, header::OFF_METADATA_OFFSET) as usize;
+                b[at + 48] = 7
+            }),
+            Code::MetadataDecode,
+        ),
     ];
     for (name, what, edit, code) in cases {
         expect_code(name, what, edit, code, Depth::Quick, true)?;
@@ -587,34 +1013,192 @@ fn block_rules_hold_on_their_own() -> TestResult {
     // Treelet block: 16-byte head, 1 start, nodes at +20 (basic, leaf, leaf).
     // Triangle block: 16-byte head, list (2 × u16), triangles (2 × 6 bytes), 4 vertices.
     let cases: Vec<(&str, Edit, Code)> = vec![
-        ("treelet reserved", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); b[t + 12] = 1 }), Code::TreeletLayout),
-        ("treelet count 2", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); b[t] = 2 }), Code::TreeletLayout),
-        ("treelet start 8", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); b[t + 16] = 8 }), Code::TreeletLayout),
-        ("node type 3", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); b[t + 28] |= 3 }), Code::NodeType),
-        ("split axis 3", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); b[t + 20] |= 0b1100 }), Code::NodeField),
-        ("basic reserved bits", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); b[t + 20] |= 0x40 }), Code::NodeField),
-        ("NaN split", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); put_u32(b, t + 24, 0x7fc0_0000) }), Code::NodeField),
-        ("empty flag with an offset", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); b[t + 20] |= 0x10 }), Code::NodeChild),
-        ("leaf with no triangles", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); b[t + 28] &= 0x0f; b[t + 29] &= 0xf0 }), Code::NodeField),
-        ("right child before left", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); let w = get_u32(b, t + 20); put_u32(b, t + 20, (w & 0xff) | (2 << 8) | (1 << 20)) }), Code::NodeChild),
-        ("child outside the treelet", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); let w = get_u32(b, t + 20); put_u32(b, t + 20, (w & 0xfffff) | (3 << 20)) }), Code::NodeChild),
-        ("a node reached twice", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); let w = get_u32(b, t + 20); put_u32(b, t + 20, (w & 0xfffff) | (1 << 20)) }), Code::NodeChild),
-        ("triangle attributes", Box::new(|b: &mut Vec<u8>| { let (_, r) = quad_blocks(b); b[r + 12] = 1 }), Code::TriangleAttributes),
-        ("reserved attribute bit", Box::new(|b: &mut Vec<u8>| { let (_, r) = quad_blocks(b); b[r + 13] = 0x80 }), Code::TriangleLayout),
-        ("primaries over triangles", Box::new(|b: &mut Vec<u8>| { let (_, r) = quad_blocks(b); put_u16(b, r + 14, 3) }), Code::TriangleLayout),
-        ("list entry past the triangles", Box::new(|b: &mut Vec<u8>| { let (_, r) = quad_blocks(b); put_u16(b, r + 16, 2) }), Code::TriangleIndex),
-        ("vertex index past the vertices", Box::new(|b: &mut Vec<u8>| { let (_, r) = quad_blocks(b); put_u16(b, r + 20, 4) }), Code::TriangleIndex),
-        ("vertex not finite", Box::new(|b: &mut Vec<u8>| { let (_, r) = quad_blocks(b); put_u32(b, r + 32 + 4, 0x7f80_0000) }), Code::VertexNotFinite),
+        (
+            "treelet reserved",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                b[t + 12] = 1
+            }),
+            Code::TreeletLayout,
+        ),
+        (
+            "treelet count 2",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                b[t] = 2
+            }),
+            Code::TreeletLayout,
+        ),
+        (
+            "treelet start 8",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                b[t + 16] = 8
+            }),
+            Code::TreeletLayout,
+        ),
+        (
+            "node type 3",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                b[t + 28] |= 3
+            }),
+            Code::NodeType,
+        ),
+        (
+            "split axis 3",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                b[t + 20] |= 0b1100
+            }),
+            Code::NodeField,
+        ),
+        (
+            "basic reserved bits",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                b[t + 20] |= 0x40
+            }),
+            Code::NodeField,
+        ),
+        (
+            "NaN split",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                put_u32(b, t + 24, 0x7fc0_0000)
+            }),
+            Code::NodeField,
+        ),
+        (
+            "empty flag with an offset",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                b[t + 20] |= 0x10
+            }),
+            Code::NodeChild,
+        ),
+        (
+            "leaf with no triangles",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                b[t + 28] &= 0x0f;
+                b[t + 29] &= 0xf0
+            }),
+            Code::NodeField,
+        ),
+        (
+            "right child before left",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                let w = get_u32(b, t + 20);
+                put_u32(b, t + 20, (w & 0xff) | (2 << 8) | (1 << 20))
+            }),
+            Code::NodeChild,
+        ),
+        (
+            "child outside the treelet",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                let w = get_u32(b, t + 20);
+                put_u32(b, t + 20, (w & 0xfffff) | (3 << 20))
+            }),
+            Code::NodeChild,
+        ),
+        (
+            "a node reached twice",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                let w = get_u32(b, t + 20);
+                put_u32(b, t + 20, (w & 0xfffff) | (1 << 20))
+            }),
+            Code::NodeChild,
+        ),
+        (
+            "triangle attributes",
+            Box::new(|b: &mut Vec<u8>| {
+                let (_, r) = quad_blocks(b);
+                b[r + 12] = 1
+            }),
+            Code::TriangleAttributes,
+        ),
+        (
+            "reserved attribute bit",
+            Box::new(|b: &mut Vec<u8>| {
+                let (_, r) = quad_blocks(b);
+                b[r + 13] = 0x80
+            }),
+            Code::TriangleLayout,
+        ),
+        (
+            "primaries over triangles",
+            Box::new(|b: &mut Vec<u8>| {
+                let (_, r) = quad_blocks(b);
+                put_u16(b, r + 14, 3)
+            }),
+            Code::TriangleLayout,
+        ),
+        (
+            "list entry past the triangles",
+            Box::new(|b: &mut Vec<u8>| {
+                let (_, r) = quad_blocks(b);
+                put_u16(b, r + 16, 2)
+            }),
+            Code::TriangleIndex,
+        ),
+        (
+            "vertex index past the vertices",
+            Box::new(|b: &mut Vec<u8>| {
+                let (_, r) = quad_blocks(b);
+                put_u16(b, r + 20, 4)
+            }),
+            Code::TriangleIndex,
+        ),
+        (
+            "vertex not finite",
+            Box::new(|b: &mut Vec<u8>| {
+                let (_, r) = quad_blocks(b);
+                put_u32(b, r + 32 + 4, 0x7f80_0000)
+            }),
+            Code::VertexNotFinite,
+        ),
     ];
     for (what, edit, code) in cases {
         expect_code(q, what, edit, code, Depth::Full, true)?;
     }
     // References are checked by deep verify only. The leaves are at +28 and +36.
     let deep_cases: Vec<(&str, Edit, Code)> = vec![
-        ("leaf names a treelet block", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); put_u32(b, t + 32, 0) }), Code::TreeReference),
-        ("leaf names a missing block", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); put_u32(b, t + 40, 7) }), Code::TreeReference),
-        ("leaf entries past the list", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); put_u32(b, t + 36, 2 | (1 << 4) | (2 << 16)) }), Code::TreeReference),
-        ("leaf with more triangles", Box::new(|b: &mut Vec<u8>| { let (t, _) = quad_blocks(b); put_u32(b, t + 28, 2 | (3 << 4)) }), Code::TreeReference),
+        (
+            "leaf names a treelet block",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                put_u32(b, t + 32, 0)
+            }),
+            Code::TreeReference,
+        ),
+        (
+            "leaf names a missing block",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                put_u32(b, t + 40, 7)
+            }),
+            Code::TreeReference,
+        ),
+        (
+            "leaf entries past the list",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                put_u32(b, t + 36, 2 | (1 << 4) | (2 << 16))
+            }),
+            Code::TreeReference,
+        ),
+        (
+            "leaf with more triangles",
+            Box::new(|b: &mut Vec<u8>| {
+                let (t, _) = quad_blocks(b);
+                put_u32(b, t + 28, 2 | (3 << 4))
+            }),
+            Code::TreeReference,
+        ),
     ];
     for (what, edit, code) in deep_cases {
         expect_code(q, what, edit, code, Depth::Deep, false)?;
@@ -633,31 +1217,103 @@ fn edit_metadata(name: &str, edit: impl Fn(&mut Metadata)) -> TestResult<Vec<u8>
 fn tree_rules_hold_on_their_own() -> TestResult {
     type MetaEdit = fn(&mut Metadata);
     let cases: [(&str, &str, MetaEdit, Code); 11] = [
-        ("fx-deep-zstd", "root in a level-1 block", |m| m.root = Some(TreeletRef { block: 3, treelet: 0 }), Code::TreeRoot),
-        ("fx-deep-zstd", "root in a triangle block", |m| m.root = Some(TreeletRef { block: 0, treelet: 0 }), Code::TreeRoot),
-        ("fx-deep-zstd", "root treelet out of range", |m| m.root = Some(TreeletRef { block: 1, treelet: 1 }), Code::TreeRoot),
+        (
+            "fx-deep-zstd",
+            "root in a level-1 block",
+            |m| {
+                m.root = Some(TreeletRef {
+                    block: 3,
+                    treelet: 0,
+                })
+            },
+            Code::TreeRoot,
+        ),
+        (
+            "fx-deep-zstd",
+            "root in a triangle block",
+            |m| {
+                m.root = Some(TreeletRef {
+                    block: 0,
+                    treelet: 0,
+                })
+            },
+            Code::TreeRoot,
+        ),
+        (
+            "fx-deep-zstd",
+            "root treelet out of range",
+            |m| {
+                m.root = Some(TreeletRef {
+                    block: 1,
+                    treelet: 1,
+                })
+            },
+            Code::TreeRoot,
+        ),
         ("fx-deep-zstd", "no root", |m| m.root = None, Code::TreeRoot),
-        ("fx-deep-zstd", "counts.leaves", |m| m.counts.leaves += 1, Code::TreeCounts),
-        ("fx-deep-zstd", "counts.depth", |m| m.counts.depth = 4, Code::TreeCounts),
-        ("fx-lod-lz4", "six_sample_voxels", |m| m.schema.six_sample_voxels = false, Code::TreeCounts),
-        ("fx-lod-lz4", "materials", |m| m.materials.truncate(1), Code::TreeMaterial),
-        ("fx-lod-lz4", "a box too small for the split", |m| m.scene.bounds_max[0] = 0.9, Code::TreeSplit),
-        ("fx-lod-lz4", "a box too big for the radius", |m| m.scene.bounds_max[2] = 3.0, Code::TreeLodRadius),
-        ("fx-deep-zstd", "schema attributes", |m| m.schema.vertex_colours = true, Code::TriangleAttributes),
+        (
+            "fx-deep-zstd",
+            "counts.leaves",
+            |m| m.counts.leaves += 1,
+            Code::TreeCounts,
+        ),
+        (
+            "fx-deep-zstd",
+            "counts.depth",
+            |m| m.counts.depth = 4,
+            Code::TreeCounts,
+        ),
+        (
+            "fx-lod-lz4",
+            "six_sample_voxels",
+            |m| m.schema.six_sample_voxels = false,
+            Code::TreeCounts,
+        ),
+        (
+            "fx-lod-lz4",
+            "materials",
+            |m| m.materials.truncate(1),
+            Code::TreeMaterial,
+        ),
+        (
+            "fx-lod-lz4",
+            "a box too small for the split",
+            |m| m.scene.bounds_max[0] = 0.9,
+            Code::TreeSplit,
+        ),
+        (
+            "fx-lod-lz4",
+            "a box too big for the radius",
+            |m| m.scene.bounds_max[2] = 3.0,
+            Code::TreeLodRadius,
+        ),
+        (
+            "fx-deep-zstd",
+            "schema attributes",
+            |m| m.schema.vertex_colours = true,
+            Code::TriangleAttributes,
+        ),
     ];
     for (name, what, edit, code) in cases {
         let b = edit_metadata(name, edit)?;
         let r = verify_bytes(&b, &deep())?;
         assert!(r.has(code) && !r.valid, "{name}: {what}: {:?}", r.issues);
         let full_report = verify_bytes(&b, &full())?;
-        assert!(!full_report.has(Code::MetadataChecksum), "{name}: {what}: re-seal failed");
+        assert!(
+            !full_report.has(Code::MetadataChecksum),
+            "{name}: {what}: re-seal failed"
+        );
     }
     // A wrong feature bit is a warning only.
     let mut b = file("fx-lod-lz4")?;
     put_u64(&mut b, header::OFF_COMPAT, header::COMPAT_LOD_VOXELS);
     let b = reseal(&b)?;
     let r = verify_bytes(&b, &deep())?;
-    assert!(r.valid && r.has(Code::HeaderFeatureMismatch), "{:?}", r.issues);
+    assert!(
+        r.valid && r.has(Code::HeaderFeatureMismatch),
+        "{:?}",
+        r.issues
+    );
     Ok(())
 }
 
@@ -792,21 +1448,33 @@ fn the_counting_allocator_sees_large_allocations() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Bugs found in crates/oocfmt/src (ignored until fixed; see each reason).
+// Regressions: bugs these tests found in crates/oocfmt/src, fixed since.
 
 #[test]
-#[ignore = "BUG: directory.rs BlockEntry::end() overflows (panics in debug) for an entry offset near u64::MAX, from check_placement in Reader::open and verify"]
-fn bug_an_entry_offset_near_u64_max_is_refused_without_panic() -> TestResult {
+/// `BlockEntry::end()` used to overflow (a panic in debug builds) in `check_placement`.
+fn an_entry_offset_near_u64_max_is_refused_without_panic() -> TestResult {
     for f in files() {
         let (dir, count) = directory_of(&f.bytes);
         for i in 0..count {
             let mut b = f.bytes.clone();
-            put_u64(&mut b, dir + i * directory::ENTRY_LEN + directory::OFF_OFFSET, u64::MAX);
+            put_u64(
+                &mut b,
+                dir + i * directory::ENTRY_LEN + directory::OFF_OFFSET,
+                u64::MAX,
+            );
             let b = reseal(&b)?;
-            let caught = std::panic::catch_unwind(|| (reader_code(&b), verify_bytes(&b, &full()).map(|r| r.has(Code::EntryOffset))));
-            let Ok((code, flagged)) = caught else {
-                panic!("{}: block {i} at offset u64::MAX: the reader or verify panicked", f.name);
-            };
+            let caught = std::panic::catch_unwind(|| {
+                (
+                    reader_code(&b),
+                    verify_bytes(&b, &full()).map(|r| r.has(Code::EntryOffset)),
+                )
+            });
+            let (code, flagged) = caught.map_err(|_| {
+                format!(
+                    "{}: block {i} at offset u64::MAX: the reader or verify panicked",
+                    f.name
+                )
+            })?;
             assert_eq!(code, Some(Code::EntryOffset), "{}: block {i}", f.name);
             assert!(flagged?, "{}: block {i}", f.name);
         }
@@ -815,9 +1483,14 @@ fn bug_an_entry_offset_near_u64_max_is_refused_without_panic() -> TestResult {
 }
 
 #[test]
-#[ignore = "BUG: verify/tree.rs split_cell calls f64::clamp with a NaN bound (panic) when the metadata scene bounds are NaN"]
-fn bug_nan_scene_bounds_do_not_panic_deep_verify() -> TestResult {
-    for (name, axis, max) in [("fx-quad-none", 0, false), ("fx-lod-lz4", 1, true), ("fx-deep-zstd", 2, false)] {
+/// Deep verify used to panic in `split_cell` (`f64::clamp` with a NaN bound) on NaN scene bounds;
+/// found by the `open_verify` fuzzer within seconds.
+fn nan_scene_bounds_do_not_panic_deep_verify() -> TestResult {
+    for (name, axis, max) in [
+        ("fx-quad-none", 0, false),
+        ("fx-lod-lz4", 1, true),
+        ("fx-deep-zstd", 2, false),
+    ] {
         let b = edit_metadata(name, |m| {
             if max {
                 m.scene.bounds_max[axis] = f32::NAN;
@@ -826,44 +1499,201 @@ fn bug_nan_scene_bounds_do_not_panic_deep_verify() -> TestResult {
             }
         })?;
         let r = std::panic::catch_unwind(|| verify_bytes(&b, &deep()));
-        let Ok(r) = r else { panic!("{name}: deep verify panicked on NaN scene bounds") };
-        assert!(!r?.valid, "{name}: NaN scene bounds must make the file invalid (spec §1: f32 fields are finite)");
+        let r = r.map_err(|_| format!("{name}: deep verify panicked on NaN scene bounds"))?;
+        assert!(
+            !r?.valid,
+            "{name}: NaN scene bounds must make the file invalid (spec §1: f32 fields are finite)"
+        );
     }
     // The file the fuzzer found (fuzz/regressions/open_verify/).
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fuzz/regressions/open_verify/nan-scene-bounds-deep-verify-panics");
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fuzz/regressions/open_verify/nan-scene-bounds-deep-verify-panics"
+    );
     let data = std::fs::read(path)?;
-    assert!(std::panic::catch_unwind(|| props::open_verify(&data)).is_ok(), "the fuzz regression still panics");
+    assert!(
+        std::panic::catch_unwind(|| props::open_verify(&data)).is_ok(),
+        "the fuzz regression still panics"
+    );
     Ok(())
 }
 
 #[test]
-#[ignore = "BUG: metadata.rs Metadata::decode accepts non-finite scene bounds and material colours (spec §1: every f32 is finite unless a field says otherwise)"]
-fn bug_non_finite_metadata_floats_are_refused() -> TestResult {
+/// `Metadata::decode` used to accept non-finite floats (spec §1: every f32 is finite).
+fn non_finite_metadata_floats_are_refused() -> TestResult {
     type MetaEdit = fn(&mut oocfmt::Metadata);
-    let cases: [(&str, MetaEdit); 4] = [
+    let cases: [(&str, MetaEdit); 6] = [
         ("bounds_min = NaN", |m| m.scene.bounds_min[0] = f32::NAN),
-        ("bounds_max = +inf", |m| m.scene.bounds_max[1] = f32::INFINITY),
-        ("bounds_min = -inf", |m| m.scene.bounds_min[2] = f32::NEG_INFINITY),
+        ("origin = NaN", |m| m.scene.origin[1] = f64::NAN),
+        ("an inverted box", |m| m.scene.bounds_min[0] = 2.5),
+        ("bounds_max = +inf", |m| {
+            m.scene.bounds_max[1] = f32::INFINITY
+        }),
+        ("bounds_min = -inf", |m| {
+            m.scene.bounds_min[2] = f32::NEG_INFINITY
+        }),
         ("diffuse = NaN", |m| m.materials[0].diffuse[1] = f32::NAN),
     ];
     for (what, edit) in cases {
         let b = edit_metadata("fx-lod-lz4", edit)?;
-        assert!(reader_code(&b).is_some(), "{what}: the reader accepts the file");
+        assert_eq!(
+            reader_code(&b),
+            Some(Code::MetadataDecode),
+            "{what}: the reader"
+        );
         let r = std::panic::catch_unwind(|| verify_bytes(&b, &full()));
-        let Ok(r) = r else { panic!("{what}: verify panicked") };
+        let r = r.map_err(|_| format!("{what}: verify panicked"))?;
         assert!(!r?.valid, "{what}: verify (default depth) says valid");
     }
     Ok(())
 }
 
 #[test]
-#[ignore = "BUG: verify never checks Limits::max_resident_bytes, so it reports valid a file the reader refuses with LIMIT_EXCEEDED"]
-fn bug_verify_enforces_the_resident_proxy_limit() -> TestResult {
+/// Verify used to ignore `Limits::max_resident_bytes` and call valid a file the reader refuses.
+fn verify_enforces_the_resident_proxy_limit() -> TestResult {
     let b = file("fx-deep-zstd")?; // one proxy block of 2 × 80 bytes
-    let limits = Limits { max_resident_bytes: 100, ..Limits::default() };
-    let e = open_bytes(&b, ReadOptions { limits, ..ReadOptions::default() }).err().map(|e| e.code());
+    let limits = Limits {
+        max_resident_bytes: 100,
+        ..Limits::default()
+    };
+    let e = open_bytes(
+        &b,
+        ReadOptions {
+            limits,
+            ..ReadOptions::default()
+        },
+    )
+    .err()
+    .map(|e| e.code());
     assert_eq!(e, Some(Code::LimitExceeded));
-    let r = verify_bytes(&b, &VerifyOptions { limits, ..VerifyOptions::default() })?;
-    assert!(r.has(Code::LimitExceeded) && !r.valid, "verify with the same limits: {:?}", r.issues);
+    let r = verify_bytes(
+        &b,
+        &VerifyOptions {
+            limits,
+            ..VerifyOptions::default()
+        },
+    )?;
+    assert!(
+        r.has(Code::LimitExceeded) && !r.valid,
+        "verify with the same limits: {:?}",
+        r.issues
+    );
+    Ok(())
+}
+
+/// A file of `n` proxy blocks, each one stored byte claiming 1 MiB raw under LZ4 (1 MiB blocks):
+/// every rule the directory alone can check holds, and it is about 32 bytes per block.
+fn proxy_bomb(n: u32) -> TestResult<Vec<u8>> {
+    let meta = Metadata::default().encode()?;
+    let mut h = oocfmt::Header::new(20);
+    let blocks_end = header::HEADER_LEN as u64 + u64::from(n);
+    h.sections = header::SectionTable {
+        directory_offset: blocks_end,
+        block_count: n,
+        metadata_offset: blocks_end + u64::from(n) * directory::ENTRY_LEN as u64,
+        metadata_length: u32::try_from(meta.len())?,
+    };
+    h.compatible_features = header::COMPAT_PROXIES;
+    let mut b = h.encode().to_vec();
+    b.extend(std::iter::repeat_n(0u8, n as usize));
+    for i in 0..n {
+        let e = oocfmt::BlockEntry {
+            offset: header::HEADER_LEN as u64 + u64::from(i),
+            stored_length: 1,
+            raw_length: 1 << 20,
+            crc: oocfmt::checksum::crc32c(&[0]),
+            kind: oocfmt::BlockKind::Proxy,
+            codec: oocfmt::CodecId::Lz4,
+            level: 0,
+            item_count: 13107,
+        };
+        e.encode_into(&mut b);
+    }
+    b.extend_from_slice(&meta);
+    let t = oocfmt::Trailer {
+        sections: h.sections,
+        directory_crc: 0,
+        metadata_crc: 0,
+        root_checksum: 0,
+    };
+    b.extend_from_slice(&t.encode());
+    reseal(&b)
+}
+
+#[test]
+fn opening_a_proxy_bomb_allocates_little() -> TestResult {
+    let b = proxy_bomb(64)?;
+    assert!(b.len() < 4096);
+    let _guard = PEAK_LOCK.lock().unwrap_or_else(|p| p.into_inner());
+    PEAK.store(0, Ordering::SeqCst);
+    let r = open_bytes(&b, ReadOptions::default());
+    let peak = PEAK.load(Ordering::SeqCst);
+    assert!(r.is_err(), "the blocks do not decompress");
+    assert!(
+        peak <= (1 << 20) + b.len(),
+        "Reader::open of a {}-byte file allocated {peak} bytes at once",
+        b.len()
+    );
+    Ok(())
+}
+
+#[test]
+fn a_proxy_bomb_is_refused_by_reader_and_verify() -> TestResult {
+    let b = proxy_bomb(64)?;
+    let e = open_bytes(&b, ReadOptions::default())
+        .err()
+        .map(|e| e.code());
+    assert_eq!(e, Some(Code::BlockDecompress));
+    let skip = ReadOptions {
+        checksums: Checksums::Skip,
+        ..ReadOptions::default()
+    };
+    assert_eq!(
+        open_bytes(&b, skip).err().map(|e| e.code()),
+        Some(Code::BlockDecompress)
+    );
+    let r = verify_bytes(&b, &deep())?;
+    assert!(r.has(Code::BlockDecompress) && !r.valid, "{:?}", codes(&r));
+    let tight = Limits {
+        max_resident_bytes: 32 << 20,
+        ..Limits::default()
+    };
+    let e = open_bytes(
+        &b,
+        ReadOptions {
+            limits: tight,
+            ..ReadOptions::default()
+        },
+    )
+    .err()
+    .map(|e| e.code());
+    assert_eq!(e, Some(Code::LimitExceeded));
+    Ok(())
+}
+
+#[test]
+fn a_short_file_of_another_major_version_is_named_as_such() -> TestResult {
+    let mut head = oocfmt::Header::new(16).encode().to_vec();
+    head[oocfmt::header::OFF_MAJOR] = 2;
+    for len in [12, 40, 64, 100] {
+        let b = &head
+            .iter()
+            .copied()
+            .chain(std::iter::repeat(0))
+            .take(len)
+            .collect::<Vec<u8>>();
+        let e = open_bytes(b, ReadOptions::default())
+            .err()
+            .map(|e| e.code());
+        assert_eq!(e, Some(Code::HeaderVersionUnsupported), "{len} bytes");
+        assert!(
+            verify_bytes(b, &VerifyOptions::default())?.has(Code::HeaderVersionUnsupported),
+            "{len} bytes"
+        );
+    }
+    let e = open_bytes(&head[..11], ReadOptions::default())
+        .err()
+        .map(|e| e.code());
+    assert_eq!(e, Some(Code::FileTooSmall), "too short to hold the version");
     Ok(())
 }

@@ -3,7 +3,9 @@
 
 mod common;
 
-use common::{deep, fixtures, has_error, open_bytes, read_all_blocks, vectors, verify_bytes, TestResult};
+use common::{
+    deep, fixtures, has_error, open_bytes, read_all_blocks, vectors, verify_bytes, TestResult,
+};
 use oocfmt::verify::Depth;
 use oocfmt::{Code, ReadOptions, Reader};
 
@@ -20,7 +22,15 @@ fn every_fixture_is_deep_valid_with_no_issue() -> TestResult {
             assert!(r.issues.is_empty(), "{}: {:?}", f.name, r.issues);
             assert_eq!(r.errors + r.warnings + r.infos, 0);
         }
-        assert_eq!(r.blocks_checked, u64::from(open_bytes(&f.bytes, ReadOptions::default())?.header().sections.block_count));
+        assert_eq!(
+            r.blocks_checked,
+            u64::from(
+                open_bytes(&f.bytes, ReadOptions::default())?
+                    .header()
+                    .sections
+                    .block_count
+            )
+        );
     }
     Ok(())
 }
@@ -39,7 +49,11 @@ fn fixtures_exercise_every_codec_kind_and_feature() -> TestResult {
             kinds.insert(e.kind);
         }
     }
-    assert_eq!(codecs.len(), 3, "fixtures should store blocks under every codec: {codecs:?}");
+    assert_eq!(
+        codecs.len(),
+        3,
+        "fixtures should store blocks under every codec: {codecs:?}"
+    );
     assert_eq!(kinds.len(), 3, "{kinds:?}");
     assert_eq!(features, oocfmt::header::KNOWN_COMPAT);
     Ok(())
@@ -50,7 +64,11 @@ fn fixtures_are_deterministic() -> TestResult {
     let a = fixtures()?;
     let b = fixtures()?;
     for (x, y) in a.iter().zip(&b) {
-        assert_eq!(x.bytes, y.bytes, "{}: the same input must give a byte-identical file", x.name);
+        assert_eq!(
+            x.bytes, y.bytes,
+            "{}: the same input must give a byte-identical file",
+            x.name
+        );
     }
     Ok(())
 }
@@ -61,10 +79,19 @@ fn every_vector_is_valid_and_reads_back() -> TestResult {
         let r = verify_bytes(&v.bytes, &deep())?;
         assert!(!has_error(&r), "{}: {:?}", v.name, r.issues);
         let path = common::vectors_dir().join(&v.name);
-        for reader in [Reader::open(&path, ReadOptions::default())?, Reader::open_mmap(&path, ReadOptions::default())?] {
+        for reader in [
+            Reader::open(&path, ReadOptions::default())?,
+            Reader::open_mmap(&path, ReadOptions::default())?,
+        ] {
             read_all_blocks(&reader)?;
         }
-        let quick = verify_bytes(&v.bytes, &oocfmt::verify::VerifyOptions { depth: Depth::Quick, ..Default::default() })?;
+        let quick = verify_bytes(
+            &v.bytes,
+            &oocfmt::verify::VerifyOptions {
+                depth: Depth::Quick,
+                ..Default::default()
+            },
+        )?;
         assert!(quick.valid, "{}", v.name);
     }
     Ok(())

@@ -12,7 +12,12 @@ use std::path::{Path, PathBuf};
 use common::{all_files, open_bytes, props, NamedFile, TestResult};
 use oocfmt::{BlockKind, Checksums, ReadOptions};
 
-const TARGETS: [&str; 4] = ["open_verify", "block_decode", "treelet_decode", "triangle_decode"];
+const TARGETS: [&str; 4] = [
+    "open_verify",
+    "block_decode",
+    "treelet_decode",
+    "triangle_decode",
+];
 
 fn fuzz_dir() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fuzz"))
@@ -32,7 +37,9 @@ fn run_target(target: &str, data: &[u8]) -> TestResult {
 /// Every file of `root/<target>/`, for every target directory present; `(target, path)`.
 fn inputs(root: &Path) -> TestResult<Vec<(String, PathBuf)>> {
     let mut out = Vec::new();
-    let Ok(dirs) = std::fs::read_dir(root) else { return Ok(out) };
+    let Ok(dirs) = std::fs::read_dir(root) else {
+        return Ok(out);
+    };
     for d in dirs {
         let d = d?;
         if !d.file_type()?.is_dir() {
@@ -64,14 +71,16 @@ fn corpus_replays_without_panic() -> TestResult {
     let n = replay(&fuzz_dir().join("corpus"))?;
     let present = inputs(&fuzz_dir().join("corpus"))?;
     for t in TARGETS {
-        assert!(present.iter().any(|(x, _)| x == t), "fuzz/corpus/{t}/ has no seed");
+        assert!(
+            present.iter().any(|(x, _)| x == t),
+            "fuzz/corpus/{t}/ has no seed"
+        );
     }
     assert!(n >= TARGETS.len());
     Ok(())
 }
 
 #[test]
-#[ignore = "BUG: fuzz/regressions/ holds crashes not fixed yet (see the bug_* tests in corruption.rs); un-ignore once they are"]
 fn regressions_replay_without_panic() -> TestResult {
     replay(&fuzz_dir().join("regressions"))?;
     Ok(())
@@ -82,7 +91,10 @@ fn regressions_replay_without_panic() -> TestResult {
 /// triangle blocks for the record targets.
 fn seeds(files: &[NamedFile]) -> TestResult<Vec<(&'static str, String, Vec<u8>)>> {
     let mut out = Vec::new();
-    let opts = ReadOptions { checksums: Checksums::Verify, ..ReadOptions::default() };
+    let opts = ReadOptions {
+        checksums: Checksums::Verify,
+        ..ReadOptions::default()
+    };
     for f in files {
         let stem = f.name.trim_end_matches(".oocf").to_string();
         out.push(("open_verify", format!("{stem}.oocf"), f.bytes.clone()));
@@ -103,7 +115,9 @@ fn seeds(files: &[NamedFile]) -> TestResult<Vec<(&'static str, String, Vec<u8>)>
             out.push(("block_decode", format!("{stem}-b{id}"), seed));
             match e.kind {
                 BlockKind::Treelet => out.push(("treelet_decode", format!("{stem}-b{id}"), b.data)),
-                BlockKind::Triangle => out.push(("triangle_decode", format!("{stem}-b{id}"), b.data)),
+                BlockKind::Triangle => {
+                    out.push(("triangle_decode", format!("{stem}-b{id}"), b.data))
+                }
                 BlockKind::Proxy => {}
             }
         }
@@ -129,5 +143,14 @@ fn write_seed_corpus() -> TestResult {
         std::fs::create_dir_all(&dir)?;
         std::fs::write(dir.join(name), data)?;
     }
+    // Hand-made regression: a directory entry at offset u64::MAX (re-sealed) used to overflow
+    // `BlockEntry::end()` in `check_placement`.
+    let mut b = common::fixture("fx-quad-none")?;
+    let (dir, _) = common::directory_of(&b);
+    common::put_u64(&mut b, dir + oocfmt::directory::OFF_OFFSET, u64::MAX);
+    let b = common::reseal(&b)?;
+    let out = fuzz_dir().join("regressions").join("open_verify");
+    std::fs::create_dir_all(&out)?;
+    std::fs::write(out.join("entry-offset-u64-max-overflows"), b)?;
     Ok(())
 }

@@ -12,7 +12,9 @@ fn spec() -> String {
 
 /// The rows `| offset | size | type | field | ...` of the table under `heading`.
 fn table(spec: &str, heading: &str) -> Vec<(usize, usize, String)> {
-    let start = spec.find(heading).unwrap_or_else(|| panic!("no section {heading}"));
+    let start = spec
+        .find(heading)
+        .unwrap_or_else(|| panic!("no section {heading}"));
     let mut rows = Vec::new();
     let mut seen_table = false;
     for line in spec[start..].lines().skip(1) {
@@ -40,7 +42,10 @@ fn check_contiguous(rows: &[(usize, usize, String)], total: usize, what: &str) {
         assert_eq!(*off, at, "{what}: field {name} at {off}, expected {at}");
         at += size;
     }
-    assert_eq!(at, total, "{what}: fields add up to {at}, the code says {total}");
+    assert_eq!(
+        at, total,
+        "{what}: fields add up to {at}, the code says {total}"
+    );
 }
 
 #[test]
@@ -61,7 +66,10 @@ fn header_table_matches_the_code() {
         ("header_crc", header::OFF_HEADER_CRC),
     ];
     for (name, off) in want {
-        assert!(rows.iter().any(|(o, _, n)| n == name && *o == off), "header field {name} is not at {off} in the spec");
+        assert!(
+            rows.iter().any(|(o, _, n)| n == name && *o == off),
+            "header field {name} is not at {off} in the spec"
+        );
     }
 }
 
@@ -75,7 +83,10 @@ fn trailer_table_matches_the_code() {
         ("root_checksum", trailer::OFF_ROOT_CHECKSUM),
         ("trailer_crc", trailer::OFF_TRAILER_CRC),
     ] {
-        assert!(rows.iter().any(|(o, _, n)| n == name && *o == off), "trailer field {name} is not at {off} in the spec");
+        assert!(
+            rows.iter().any(|(o, _, n)| n == name && *o == off),
+            "trailer field {name} is not at {off} in the spec"
+        );
     }
 }
 
@@ -93,16 +104,30 @@ fn directory_table_matches_the_code() {
         ("level", directory::OFF_LEVEL),
         ("item_count", directory::OFF_ITEM_COUNT),
     ] {
-        assert!(rows.iter().any(|(o, _, n)| n == name && *o == off), "entry field {name} is not at {off} in the spec");
+        assert!(
+            rows.iter().any(|(o, _, n)| n == name && *o == off),
+            "entry field {name} is not at {off} in the spec"
+        );
     }
 }
 
 #[test]
 fn magics_match_the_code() {
     let s = spec();
-    let hex = |b: &[u8]| b.iter().map(|x| format!("{x:02X}")).collect::<Vec<_>>().join(" ");
-    assert!(s.contains(&format!("`{}`", hex(&header::MAGIC))), "header magic");
-    assert!(s.contains(&format!("`{}`", hex(&trailer::END_MAGIC))), "end magic");
+    let hex = |b: &[u8]| {
+        b.iter()
+            .map(|x| format!("{x:02X}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    assert!(
+        s.contains(&format!("`{}`", hex(&header::MAGIC))),
+        "header magic"
+    );
+    assert!(
+        s.contains(&format!("`{}`", hex(&trailer::END_MAGIC))),
+        "end magic"
+    );
 }
 
 #[test]

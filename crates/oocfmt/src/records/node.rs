@@ -68,7 +68,12 @@ impl Node {
     /// the output always decodes, and [`Node::check`] on the decoded value reports them.
     pub fn encode_into(&self, v: &mut Vec<u8>) {
         match *self {
-            Node::Basic { axis, split, left, right } => {
+            Node::Basic {
+                axis,
+                split,
+                left,
+                right,
+            } => {
                 let w = TYPE_BASIC
                     | (u32::from(axis & 3) << 2)
                     | (u32::from(left == 0) << 4)
@@ -101,8 +106,14 @@ impl Node {
                 v.put_u32(voxel_offset);
                 v.put_u32(proxy);
             }
-            Node::Leaf { count, first, block } => {
-                let w = TYPE_LEAF | (u32::from(count & MAX_LEAF_TRIANGLES) << 4) | (u32::from(first) << 16);
+            Node::Leaf {
+                count,
+                first,
+                block,
+            } => {
+                let w = TYPE_LEAF
+                    | (u32::from(count & MAX_LEAF_TRIANGLES) << 4)
+                    | (u32::from(first) << 16);
                 v.put_u32(w);
                 v.put_u32(block);
             }
@@ -118,7 +129,10 @@ impl Node {
                 let left = ((w >> 8) & 0xfff) as u16;
                 let right = ((w >> 20) & 0xfff) as u16;
                 if (w >> 4) & 1 != u32::from(left == 0) || (w >> 5) & 1 != u32::from(right == 0) {
-                    return bad(Code::NodeChild, format!("node at {pos}: empty flags disagree with child offsets"));
+                    return bad(
+                        Code::NodeChild,
+                        format!("node at {pos}: empty flags disagree with child offsets"),
+                    );
                 }
                 if w & 0xc0 != 0 {
                     return bad(Code::NodeField, format!("node at {pos}: reserved bits set"));
@@ -166,7 +180,12 @@ impl Node {
     /// Field rules that need no context: axis, finiteness, non-empty.
     pub fn check(&self) -> Result<()> {
         let (axis, split) = match *self {
-            Node::Basic { axis, split, left, right } => {
+            Node::Basic {
+                axis,
+                split,
+                left,
+                right,
+            } => {
                 if left == 0 && right == 0 {
                     return bad(Code::NodeField, "inner node with two empty children");
                 }
@@ -184,7 +203,10 @@ impl Node {
                     return bad(Code::NodeField, "LOD node with two empty children");
                 }
                 if !(radius.is_finite() && radius >= 0.0) {
-                    return bad(Code::NodeField, format!("LOD radius {radius} is not a finite non-negative number"));
+                    return bad(
+                        Code::NodeField,
+                        format!("LOD radius {radius} is not a finite non-negative number"),
+                    );
                 }
                 (axis, split)
             }
@@ -199,7 +221,10 @@ impl Node {
             return bad(Code::NodeField, "split axis 3");
         }
         if !split.is_finite() {
-            return bad(Code::NodeField, format!("split position {split} is not finite"));
+            return bad(
+                Code::NodeField,
+                format!("split position {split} is not finite"),
+            );
         }
         Ok(())
     }
@@ -212,8 +237,18 @@ mod tests {
     #[test]
     fn every_node_kind_round_trips() {
         let nodes = [
-            Node::Basic { axis: 2, split: -1.5, left: 1, right: 0xfff },
-            Node::Basic { axis: 0, split: 0.0, left: 0, right: 3 },
+            Node::Basic {
+                axis: 2,
+                split: -1.5,
+                left: 1,
+                right: 0xfff,
+            },
+            Node::Basic {
+                axis: 0,
+                split: 0.0,
+                left: 0,
+                right: 3,
+            },
             Node::Lod {
                 axis: 1,
                 split: 2.0,
@@ -225,7 +260,11 @@ mod tests {
                 voxel_offset: 40,
                 proxy: NO_PROXY,
             },
-            Node::Leaf { count: 4095, first: 65535, block: u32::MAX },
+            Node::Leaf {
+                count: 4095,
+                first: 65535,
+                block: u32::MAX,
+            },
         ];
         for n in nodes {
             let mut v = Vec::new();
@@ -238,10 +277,22 @@ mod tests {
     #[test]
     fn bad_fields_are_refused() {
         let mut v = Vec::new();
-        Node::Basic { axis: 3, split: 1.0, left: 1, right: 2 }.encode_into(&mut v);
-        assert_eq!(Node::decode(&v, 0).err().map(|e| e.code()), Some(Code::NodeField));
+        Node::Basic {
+            axis: 3,
+            split: 1.0,
+            left: 1,
+            right: 2,
+        }
+        .encode_into(&mut v);
+        assert_eq!(
+            Node::decode(&v, 0).err().map(|e| e.code()),
+            Some(Code::NodeField)
+        );
         let v = 3u32.to_le_bytes().repeat(2);
-        assert_eq!(Node::decode(&v, 0).err().map(|e| e.code()), Some(Code::NodeType));
+        assert_eq!(
+            Node::decode(&v, 0).err().map(|e| e.code()),
+            Some(Code::NodeType)
+        );
         assert!(Node::decode(&[0, 0, 0], 0).is_err());
     }
 }

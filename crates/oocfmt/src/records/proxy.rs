@@ -50,23 +50,40 @@ impl ProxyRecord {
         let c = Code::ProxyLayout;
         let area = f32_at(b, base + 4, c)?;
         if !(area.is_finite() && area >= 0.0) {
-            return bad(c, format!("proxy {index}: area {area} is not a finite non-negative number"));
+            return bad(
+                c,
+                format!("proxy {index}: area {area} is not a finite non-negative number"),
+            );
         }
         let mut samples = [Sample(0); 18];
         for (k, s) in samples.iter_mut().enumerate() {
             *s = Sample(u32_at(b, base + 8 + 4 * k, c)?);
-            let ok = if s.is_empty() { s.0 == Sample::EMPTY.0 } else { !s.is_single() && s.check().is_ok() };
+            let ok = if s.is_empty() {
+                s.0 == Sample::EMPTY.0
+            } else {
+                !s.is_single() && s.check().is_ok()
+            };
             if !ok {
-                return bad(c, format!("proxy {index}: sample {k} ({:#010x}) is invalid", s.0));
+                return bad(
+                    c,
+                    format!("proxy {index}: sample {k} ({:#010x}) is invalid", s.0),
+                );
             }
         }
-        Ok(ProxyRecord { node_block: u32_at(b, base, c)?, area, samples })
+        Ok(ProxyRecord {
+            node_block: u32_at(b, base, c)?,
+            area,
+            samples,
+        })
     }
 
     /// Decodes a whole proxy block of `count` records.
     pub fn decode_block(raw: &[u8], count: usize) -> Result<Vec<ProxyRecord>> {
         if raw.len() != count.saturating_mul(PROXY_LEN) {
-            return bad(Code::ProxyLayout, format!("{} bytes for {count} proxies of 80 bytes", raw.len()));
+            return bad(
+                Code::ProxyLayout,
+                format!("{} bytes for {count} proxies of 80 bytes", raw.len()),
+            );
         }
         (0..count).map(|i| ProxyRecord::decode(raw, i)).collect()
     }

@@ -51,7 +51,11 @@ impl Sample {
     pub const EMPTY: Sample = Sample(EMPTY);
 
     pub fn with_single(self, single: bool) -> Sample {
-        Sample(if single { self.0 | SINGLE } else { self.0 & !SINGLE })
+        Sample(if single {
+            self.0 | SINGLE
+        } else {
+            self.0 & !SINGLE
+        })
     }
 
     pub fn is_single(self) -> bool {
@@ -85,10 +89,16 @@ impl Sample {
             return Ok(());
         }
         if (self.0 >> 16) & 3 == 3 {
-            return bad(Code::Voxel, format!("sample {:#010x}: normal axis 3", self.0));
+            return bad(
+                Code::Voxel,
+                format!("sample {:#010x}: normal axis 3", self.0),
+            );
         }
         if (self.0 >> 18) & 0x3f == 0x20 || (self.0 >> 24) & 0x3f == 0x20 {
-            return bad(Code::Voxel, format!("sample {:#010x}: normal component −32", self.0));
+            return bad(
+                Code::Voxel,
+                format!("sample {:#010x}: normal component −32", self.0),
+            );
         }
         Ok(())
     }
@@ -126,16 +136,28 @@ impl Voxel {
             let at = off + 4 * i;
             match area.get(at..at + 4) {
                 Some(&[a, b, c, d]) => Ok(Sample(u32::from_le_bytes([a, b, c, d]))),
-                _ => bad(Code::Voxel, format!("voxel at {off} runs past the voxel area ({} bytes)", area.len())),
+                _ => bad(
+                    Code::Voxel,
+                    format!(
+                        "voxel at {off} runs past the voxel area ({} bytes)",
+                        area.len()
+                    ),
+                ),
             }
         };
         if off % 4 != 0 {
-            return bad(Code::Voxel, format!("voxel offset {off} is not a multiple of 4"));
+            return bad(
+                Code::Voxel,
+                format!("voxel offset {off} is not a multiple of 4"),
+            );
         }
         let first = word(0)?;
         let check = |s: Sample| -> Result<()> {
             if s.is_empty() {
-                return bad(Code::Voxel, format!("voxel sample {:#010x} has the proxy-only empty bit", s.0));
+                return bad(
+                    Code::Voxel,
+                    format!("voxel sample {:#010x} has the proxy-only empty bit", s.0),
+                );
             }
             s.check()
         };
@@ -147,7 +169,10 @@ impl Voxel {
         for (i, slot) in six.iter_mut().enumerate().skip(1) {
             let s = word(i)?;
             if s.is_single() {
-                return bad(Code::Voxel, format!("sample {i} of the 6-sample voxel at {off} has the single flag"));
+                return bad(
+                    Code::Voxel,
+                    format!("sample {i} of the 6-sample voxel at {off} has the single flag"),
+                );
             }
             check(s)?;
             *slot = s;

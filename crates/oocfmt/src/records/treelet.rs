@@ -38,8 +38,10 @@ impl<'a> TreeletBlock<'a> {
         if u32_at(raw, 12, c)? != 0 {
             return bad(c, "reserved treelet block field is not zero");
         }
-        let expected = (HEAD_LEN as u64) + 4 * count as u64 + node_bytes as u64 + voxel_bytes as u64;
-        if count == 0 || node_bytes % 8 != 0 || voxel_bytes % 4 != 0 || expected != raw.len() as u64 {
+        let expected =
+            (HEAD_LEN as u64) + 4 * count as u64 + node_bytes as u64 + voxel_bytes as u64;
+        if count == 0 || node_bytes % 8 != 0 || voxel_bytes % 4 != 0 || expected != raw.len() as u64
+        {
             return bad(
                 c,
                 format!(
@@ -83,8 +85,12 @@ impl<'a> TreeletBlock<'a> {
 
     /// The node-area byte range of treelet `t`.
     pub fn treelet_span(&self, t: usize) -> Result<Range<usize>> {
-        let start = u32_at(self.starts, 4 * t, Code::TreeReference)
-            .map_err(|_| Error::malformed(Code::TreeReference, format!("treelet {t} of {}", self.treelet_count())))?;
+        let start = u32_at(self.starts, 4 * t, Code::TreeReference).map_err(|_| {
+            Error::malformed(
+                Code::TreeReference,
+                format!("treelet {t} of {}", self.treelet_count()),
+            )
+        })?;
         let end = match u32_at(self.starts, 4 * (t + 1), Code::TreeletLayout) {
             Ok(e) => e as usize,
             Err(_) => self.nodes.len(),
@@ -110,7 +116,10 @@ impl<'a> TreeletBlock<'a> {
     /// Walks every treelet in preorder and checks that its nodes are well formed, that children
     /// are forward and inside the treelet, that the nodes cover the treelet's bytes exactly once,
     /// and that every voxel decodes. Calls `visit(treelet, pos, node)` for each node.
-    pub fn walk(&self, mut visit: impl FnMut(usize, usize, &Node) -> Result<()>) -> Result<TreeletSummary> {
+    pub fn walk(
+        &self,
+        mut visit: impl FnMut(usize, usize, &Node) -> Result<()>,
+    ) -> Result<TreeletSummary> {
         let mut sum = TreeletSummary {
             treelets: self.treelet_count() as u64,
             ..TreeletSummary::default()
@@ -132,13 +141,24 @@ impl<'a> TreeletBlock<'a> {
                 let node = self.node(pos)?;
                 cursor += node.byte_len();
                 if cursor > span.end {
-                    return Err(Error::malformed(Code::NodeOverlap, format!("treelet {t}: node at {pos} runs past the treelet's end {}", span.end)).at(pos as u64));
+                    return Err(Error::malformed(
+                        Code::NodeOverlap,
+                        format!(
+                            "treelet {t}: node at {pos} runs past the treelet's end {}",
+                            span.end
+                        ),
+                    )
+                    .at(pos as u64));
                 }
                 match node {
                     Node::Basic { left, right, .. } => {
                         sum.basic_nodes += 1;
                         if left != 0 && right != 0 && right <= left {
-                            return Err(Error::malformed(Code::NodeChild, format!("node at {pos}: right child before left")).at(pos as u64));
+                            return Err(Error::malformed(
+                                Code::NodeChild,
+                                format!("node at {pos}: right child before left"),
+                            )
+                            .at(pos as u64));
                         }
                         for units in [right, left] {
                             if units != 0 {
@@ -164,7 +184,10 @@ impl<'a> TreeletBlock<'a> {
             if cursor != span.end {
                 return Err(Error::malformed(
                     Code::NodeOverlap,
-                    format!("treelet {t}: nodes end at {cursor}, the treelet at {}", span.end),
+                    format!(
+                        "treelet {t}: nodes end at {cursor}, the treelet at {}",
+                        span.end
+                    ),
                 )
                 .at(cursor as u64));
             }
@@ -239,7 +262,9 @@ impl TreeletBlockWriter {
     pub fn units_between(parent: usize, child: usize) -> Result<u16> {
         let units = child.checked_sub(parent).map(|d| d / 8).unwrap_or(0);
         if units == 0 || units > usize::from(MAX_CHILD_UNITS) || (child - parent) % 8 != 0 {
-            return Err(Error::parameter(format!("child at {child} cannot be addressed from node at {parent}")));
+            return Err(Error::parameter(format!(
+                "child at {child} cannot be addressed from node at {parent}"
+            )));
         }
         Ok(units as u16)
     }
@@ -267,9 +292,22 @@ mod tests {
     fn two_leaf_treelet() -> Vec<u8> {
         let mut w = TreeletBlockWriter::new();
         w.begin_treelet();
-        w.push_node(&Node::Basic { axis: 0, split: 0.5, left: 1, right: 2 });
-        w.push_node(&Node::Leaf { count: 1, first: 0, block: 1 });
-        w.push_node(&Node::Leaf { count: 1, first: 1, block: 1 });
+        w.push_node(&Node::Basic {
+            axis: 0,
+            split: 0.5,
+            left: 1,
+            right: 2,
+        });
+        w.push_node(&Node::Leaf {
+            count: 1,
+            first: 0,
+            block: 1,
+        });
+        w.push_node(&Node::Leaf {
+            count: 1,
+            first: 1,
+            block: 1,
+        });
         w.begin_treelet();
         let vox = w.push_voxel(&Voxel::Single(Sample::pack([0.0, 0.0, 1.0], [1.0; 3])));
         w.push_node(&Node::Lod {
@@ -293,7 +331,14 @@ mod tests {
         let sum = b.and_then(|b| b.walk(|_, _, _| Ok(())).map_err(|e| e.to_string()));
         assert_eq!(
             sum,
-            Ok(TreeletSummary { treelets: 2, basic_nodes: 1, lod_nodes: 1, leaves: 2, voxels_single: 1, voxels_six: 0 })
+            Ok(TreeletSummary {
+                treelets: 2,
+                basic_nodes: 1,
+                lod_nodes: 1,
+                leaves: 2,
+                voxels_single: 1,
+                voxels_six: 0
+            })
         );
     }
 
@@ -304,6 +349,9 @@ mod tests {
         let at = 16 + 8;
         raw[at + 2] = (raw[at + 2] & 0x0f) | 0x30;
         let e = TreeletBlock::parse(&raw).and_then(|b| b.walk(|_, _, _| Ok(())));
-        assert!(matches!(e.err().map(|e| e.code()), Some(Code::NodeChild | Code::NodeOverlap)));
+        assert!(matches!(
+            e.err().map(|e| e.code()),
+            Some(Code::NodeChild | Code::NodeOverlap)
+        ));
     }
 }

@@ -25,7 +25,8 @@ fn triangle_len(attrs: u16) -> usize {
 }
 
 fn vertex_len(attrs: u16) -> usize {
-    12 + if attrs & ATTR_NORMALS != 0 { 4 } else { 0 } + if attrs & ATTR_COLOURS != 0 { 4 } else { 0 }
+    12 + if attrs & ATTR_NORMALS != 0 { 4 } else { 0 }
+        + if attrs & ATTR_COLOURS != 0 { 4 } else { 0 }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -94,10 +95,19 @@ impl<'a> TriangleBlock<'a> {
         }
         if let Some(want) = attrs {
             if a != want {
-                return bad(Code::TriangleAttributes, format!("attributes {a:#x}, schema says {want:#x}"));
+                return bad(
+                    Code::TriangleAttributes,
+                    format!("attributes {a:#x}, schema says {want:#x}"),
+                );
             }
         }
-        if l > MAX_ITEMS || t == 0 || t > MAX_ITEMS || w == 0 || w > MAX_ITEMS || usize::from(primary) > t {
+        if l > MAX_ITEMS
+            || t == 0
+            || t > MAX_ITEMS
+            || w == 0
+            || w > MAX_ITEMS
+            || usize::from(primary) > t
+        {
             return bad(c, format!("counts list {l}, triangles {t}, vertices {w}, primaries {primary} out of range"));
         }
         let list_len = align4(2 * l);
@@ -108,7 +118,10 @@ impl<'a> TriangleBlock<'a> {
         }
         let tri_at = HEAD_LEN + list_len;
         let vert_at = tri_at + tri_len;
-        let pad_ok = raw[HEAD_LEN + 2 * l..tri_at].iter().chain(&raw[tri_at + t * triangle_len(a)..vert_at]).all(|&b| b == 0);
+        let pad_ok = raw[HEAD_LEN + 2 * l..tri_at]
+            .iter()
+            .chain(&raw[tri_at + t * triangle_len(a)..vert_at])
+            .all(|&b| b == 0);
         if !pad_ok {
             return bad(c, "padding bytes are not zero");
         }
@@ -150,30 +163,52 @@ impl<'a> TriangleBlock<'a> {
         let at = i * triangle_len(self.attrs);
         let c = Code::TriangleIndex;
         Ok(Triangle {
-            v: [u16_at(self.triangles, at, c)?, u16_at(self.triangles, at + 2, c)?, u16_at(self.triangles, at + 4, c)?],
-            material: if self.attrs & ATTR_MATERIALS != 0 { Some(u16_at(self.triangles, at + 6, c)?) } else { None },
+            v: [
+                u16_at(self.triangles, at, c)?,
+                u16_at(self.triangles, at + 2, c)?,
+                u16_at(self.triangles, at + 4, c)?,
+            ],
+            material: if self.attrs & ATTR_MATERIALS != 0 {
+                Some(u16_at(self.triangles, at + 6, c)?)
+            } else {
+                None
+            },
         })
     }
 
     pub fn vertex(&self, i: usize) -> Result<Vertex> {
         let mut at = i * vertex_len(self.attrs);
         let c = Code::TriangleIndex;
-        let position = [f32_at(self.vertices, at, c)?, f32_at(self.vertices, at + 4, c)?, f32_at(self.vertices, at + 8, c)?];
+        let position = [
+            f32_at(self.vertices, at, c)?,
+            f32_at(self.vertices, at + 4, c)?,
+            f32_at(self.vertices, at + 8, c)?,
+        ];
         at += 12;
         let normal = if self.attrs & ATTR_NORMALS != 0 {
-            let n = [u16_at(self.vertices, at, c)? as i16, u16_at(self.vertices, at + 2, c)? as i16];
+            let n = [
+                u16_at(self.vertices, at, c)? as i16,
+                u16_at(self.vertices, at + 2, c)? as i16,
+            ];
             at += 4;
             Some(n)
         } else {
             None
         };
         let colour = if self.attrs & ATTR_COLOURS != 0 {
-            let b = self.vertices.get(at..at + 4).ok_or_else(|| Error::malformed(c, "vertex colour past the end"))?;
+            let b = self
+                .vertices
+                .get(at..at + 4)
+                .ok_or_else(|| Error::malformed(c, "vertex colour past the end"))?;
             Some([b[0], b[1], b[2], b[3]])
         } else {
             None
         };
-        Ok(Vertex { position, normal, colour })
+        Ok(Vertex {
+            position,
+            normal,
+            colour,
+        })
     }
 
     /// The three positions of triangle `i`.
@@ -187,25 +222,42 @@ impl<'a> TriangleBlock<'a> {
     }
 
     /// Checks every index and every position. Material indices are checked by deep verify,
-    /// which knows the material table.
+    /// which knows the material table. One pass over each section with fixed strides: this is
+    /// the hot loop of `verify`.
     pub fn check_contents(&self) -> Result<()> {
         let (t, w) = (self.triangle_count(), self.vertex_count());
-        for i in 0..self.list_count() {
-            let e = self.list(i)?;
-            if usize::from(e) >= t {
-                return bad(Code::TriangleIndex, format!("list entry {i} names triangle {e} of {t}"));
+        let u16s = |b: &'a [u8]| {
+            b.chunks_exact(2)
+                .map(|c| usize::from(u16::from_le_bytes([c[0], c[1]])))
+        };
+        if let Some((i, e)) = u16s(self.list).enumerate().find(|&(_, e)| e >= t) {
+            return bad(
+                Code::TriangleIndex,
+                format!("list entry {i} names triangle {e} of {t}"),
+            );
+        }
+        let tri_len = triangle_len(self.attrs);
+        for (i, rec) in self.triangles.chunks_exact(tri_len).enumerate() {
+            if let Some(v) = u16s(&rec[..6]).find(|&v| v >= w) {
+                return bad(
+                    Code::TriangleIndex,
+                    format!("triangle {i} names vertex {v} of {w}"),
+                );
             }
         }
-        for i in 0..t {
-            let tri = self.triangle(i)?;
-            if let Some(&bad_v) = tri.v.iter().find(|&&v| usize::from(v) >= w) {
-                return bad(Code::TriangleIndex, format!("triangle {i} names vertex {bad_v} of {w}"));
-            }
-        }
-        for i in 0..w {
-            let p = self.vertex(i)?.position;
-            if !p.iter().all(|c| c.is_finite()) {
-                return bad(Code::VertexNotFinite, format!("vertex {i} is at {p:?}"));
+        let vert_len = vertex_len(self.attrs);
+        for (i, rec) in self.vertices.chunks_exact(vert_len).enumerate() {
+            let finite = rec[..12]
+                .chunks_exact(4)
+                .all(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]).is_finite());
+            if !finite {
+                return bad(
+                    Code::VertexNotFinite,
+                    format!(
+                        "vertex {i} is at {:?}",
+                        self.vertex(i).map(|v| v.position).ok()
+                    ),
+                );
             }
         }
         Ok(())
@@ -224,7 +276,13 @@ pub struct TriangleBlockWriter {
 
 impl TriangleBlockWriter {
     pub fn new(attrs: u16) -> Self {
-        TriangleBlockWriter { attrs, list: Vec::new(), triangles: Vec::new(), vertices: Vec::new(), primary: 0 }
+        TriangleBlockWriter {
+            attrs,
+            list: Vec::new(),
+            triangles: Vec::new(),
+            vertices: Vec::new(),
+            primary: 0,
+        }
     }
 
     pub fn push_vertex(&mut self, v: Vertex) -> Result<u16> {
@@ -252,18 +310,28 @@ impl TriangleBlockWriter {
 
     fn index(len: usize, what: &str) -> Result<()> {
         if len >= MAX_ITEMS {
-            return Err(Error::parameter(format!("a triangle block holds at most {MAX_ITEMS} {what}")));
+            return Err(Error::parameter(format!(
+                "a triangle block holds at most {MAX_ITEMS} {what}"
+            )));
         }
         Ok(())
     }
 
     /// The raw length for the given counts and attributes.
     pub fn raw_len_for(attrs: u16, list: usize, triangles: usize, vertices: usize) -> usize {
-        HEAD_LEN + align4(2 * list) + align4(triangles * triangle_len(attrs)) + vertices * vertex_len(attrs)
+        HEAD_LEN
+            + align4(2 * list)
+            + align4(triangles * triangle_len(attrs))
+            + vertices * vertex_len(attrs)
     }
 
     pub fn raw_len(&self) -> usize {
-        Self::raw_len_for(self.attrs, self.list.len(), self.triangles.len(), self.vertices.len())
+        Self::raw_len_for(
+            self.attrs,
+            self.list.len(),
+            self.triangles.len(),
+            self.vertices.len(),
+        )
     }
 
     pub fn triangle_count(&self) -> usize {
@@ -316,10 +384,19 @@ mod tests {
         let attrs = ATTR_NORMALS | ATTR_COLOURS | ATTR_MATERIALS;
         let mut w = TriangleBlockWriter::new(attrs);
         for p in [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
-            let r = w.push_vertex(Vertex { position: p, normal: Some(oct_encode([0.0, 0.0, -1.0])), colour: Some([1, 2, 3, 4]) });
+            let r = w.push_vertex(Vertex {
+                position: p,
+                normal: Some(oct_encode([0.0, 0.0, -1.0])),
+                colour: Some([1, 2, 3, 4]),
+            });
             assert!(r.is_ok());
         }
-        assert!(w.push_triangle(Triangle { v: [0, 1, 2], material: Some(7) }).is_ok());
+        assert!(w
+            .push_triangle(Triangle {
+                v: [0, 1, 2],
+                material: Some(7)
+            })
+            .is_ok());
         assert!(w.push_list(0).is_ok());
         w.set_primary_count(1);
         let raw = w.finish();
@@ -327,7 +404,13 @@ mod tests {
         assert!(b.is_ok());
         let Ok(b) = b else { return };
         assert!(b.check_contents().is_ok());
-        assert_eq!(b.triangle(0).ok(), Some(Triangle { v: [0, 1, 2], material: Some(7) }));
+        assert_eq!(
+            b.triangle(0).ok(),
+            Some(Triangle {
+                v: [0, 1, 2],
+                material: Some(7)
+            })
+        );
         let n = b.vertex(0).ok().and_then(|v| v.normal).map(oct_decode);
         assert_eq!(n, Some([0.0, 0.0, -1.0]));
         assert_eq!(b.vertex(2).ok().map(|v| v.colour), Some(Some([1, 2, 3, 4])));
@@ -337,7 +420,11 @@ mod tests {
     fn octahedral_normals_are_accurate() {
         for i in 0..500 {
             let t = i as f32 * 0.131;
-            let n = [t.sin() * (t * 0.3).cos(), t.cos() * (t * 0.3).cos(), (t * 0.3).sin()];
+            let n = [
+                t.sin() * (t * 0.3).cos(),
+                t.cos() * (t * 0.3).cos(),
+                (t * 0.3).sin(),
+            ];
             let m = oct_decode(oct_encode(n));
             let dot = n[0] * m[0] + n[1] * m[1] + n[2] * m[2];
             assert!(dot > 0.99999, "{n:?} {m:?}");
@@ -347,11 +434,28 @@ mod tests {
     #[test]
     fn wrong_schema_and_bad_indices_are_refused() {
         let mut w = TriangleBlockWriter::new(0);
-        let _ = w.push_vertex(Vertex { position: [0.0; 3], normal: None, colour: None });
-        let _ = w.push_triangle(Triangle { v: [0, 0, 5], material: None });
+        let _ = w.push_vertex(Vertex {
+            position: [0.0; 3],
+            normal: None,
+            colour: None,
+        });
+        let _ = w.push_triangle(Triangle {
+            v: [0, 0, 5],
+            material: None,
+        });
         let raw = w.finish();
-        assert_eq!(TriangleBlock::parse(&raw, Some(ATTR_NORMALS)).err().map(|e| e.code()), Some(Code::TriangleAttributes));
+        assert_eq!(
+            TriangleBlock::parse(&raw, Some(ATTR_NORMALS))
+                .err()
+                .map(|e| e.code()),
+            Some(Code::TriangleAttributes)
+        );
         let b = TriangleBlock::parse(&raw, Some(0));
-        assert_eq!(b.ok().and_then(|b| b.check_contents().err()).map(|e| e.code()), Some(Code::TriangleIndex));
+        assert_eq!(
+            b.ok()
+                .and_then(|b| b.check_contents().err())
+                .map(|e| e.code()),
+            Some(Code::TriangleIndex)
+        );
     }
 }

@@ -12,9 +12,14 @@ pub use report::{Depth, Issue, Report, REPORT_SCHEMA};
 
 use crate::directory::{check_placement, BlockEntry, BlockKind, ENTRY_LEN};
 use crate::error::{Code, Error, Result};
-use crate::header::{Header, SectionTable, HEADER_LEN, KNOWN_COMPAT, MAX_BLOCK_SIZE_LOG2, VERSION_MINOR};
+use crate::header::{
+    Header, SectionTable, HEADER_LEN, KNOWN_COMPAT, MAX_BLOCK_SIZE_LOG2, VERSION_MINOR,
+};
 use crate::metadata::Metadata;
-use crate::reader::{read_block_data, read_metadata, read_trailer, read_vec, root_checksum, Limits, ReadOptions};
+use crate::reader::{
+    read_block_data, read_metadata, read_trailer, read_vec, root_checksum, short_file_error,
+    Limits, ReadOptions,
+};
 use crate::source::ByteSource;
 use crate::summary::{survey_block, BlockFacts};
 use crate::trailer::{Trailer, TRAILER_LEN};
@@ -31,14 +36,28 @@ pub struct VerifyOptions {
 
 impl Default for VerifyOptions {
     fn default() -> Self {
-        VerifyOptions { depth: Depth::Full, max_issues: 1000, limits: Limits::default(), checksums: Checksums::Verify }
+        VerifyOptions {
+            depth: Depth::Full,
+            max_issues: 1000,
+            limits: Limits::default(),
+            checksums: Checksums::Verify,
+        }
     }
 }
 
 /// Verifies `src`. `progress` receives stored bytes checked so far (from any thread). Returns
 /// `Err` only when the source cannot be read; everything else is in the report.
-pub fn verify(src: &dyn ByteSource, name: &str, opts: &VerifyOptions, progress: &(dyn Fn(u64) + Sync)) -> Result<Report> {
-    let mut v = Verifier { src, opts, report: Report::new(name, opts.depth) };
+pub fn verify(
+    src: &dyn ByteSource,
+    name: &str,
+    opts: &VerifyOptions,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Report> {
+    let mut v = Verifier {
+        src,
+        opts,
+        report: Report::new(name, opts.depth),
+    };
     v.run(progress)?;
     Ok(v.report)
 }
@@ -62,17 +81,26 @@ impl Verifier<'_> {
         if e.code() == Code::Io {
             return Err(e);
         }
-        self.report.push(Issue::from_error(&e), self.opts.max_issues);
+        self.report
+            .push(Issue::from_error(&e), self.opts.max_issues);
         Ok(())
     }
 
     fn note_code(&mut self, code: Code, msg: String, block: Option<u32>) {
-        let issue = Issue { code, severity: code.severity(), message: msg, block, offset: None };
+        let issue = Issue {
+            code,
+            severity: code.severity(),
+            message: msg,
+            block,
+            offset: None,
+        };
         self.report.push(issue, self.opts.max_issues);
     }
 
     fn run(&mut self, progress: &(dyn Fn(u64) + Sync)) -> Result<()> {
-        let Some(index) = self.quick()? else { return Ok(()) };
+        let Some(index) = self.quick()? else {
+            return Ok(());
+        };
         if self.opts.depth == Depth::Quick {
             return Ok(());
         }
@@ -87,7 +115,8 @@ impl Verifier<'_> {
         let len = self.src.len();
         let min = (HEADER_LEN + TRAILER_LEN) as u64;
         if len < min {
-            self.note_code(Code::FileTooSmall, format!("{len} bytes, less than header and trailer ({min})"), None);
+            let e = short_file_error(self.src)?;
+            self.note(e)?;
             return Ok(None);
         }
         let header_bytes = read_vec(self.src, 0, HEADER_LEN as u64)?;
@@ -110,11 +139,22 @@ impl Verifier<'_> {
             }
         };
         if header.minor > VERSION_MINOR {
-            self.note_code(Code::HeaderMinorNewer, format!("file version 1.{}: fields added after 1.{VERSION_MINOR} are ignored", header.minor), None);
+            self.note_code(
+                Code::HeaderMinorNewer,
+                format!(
+                    "file version 1.{}: fields added after 1.{VERSION_MINOR} are ignored",
+                    header.minor
+                ),
+                None,
+            );
         }
         let unknown = header.compatible_features & !KNOWN_COMPAT;
         if unknown != 0 {
-            self.note_code(Code::HeaderFeatureUnknown, format!("compatible feature bits {unknown:#x} are not known"), None);
+            self.note_code(
+                Code::HeaderFeatureUnknown,
+                format!("compatible feature bits {unknown:#x} are not known"),
+                None,
+            );
         }
         header.block_size_log2 = header.block_size_log2.min(MAX_BLOCK_SIZE_LOG2);
         let trailer = match read_trailer(self.src) {
@@ -124,15 +164,26 @@ impl Verifier<'_> {
                 None
             }
         };
-        let Some(sections) = self.choose_sections(&header, header_ok, trailer.as_ref())? else { return Ok(None) };
+        let Some(sections) = self.choose_sections(&header, header_ok, trailer.as_ref())? else {
+            return Ok(None);
+        };
         header.sections = sections;
         self.report.identity = trailer.map(|t| format!("{:08x}", t.root_checksum));
         let dir_len = u64::from(sections.block_count) * ENTRY_LEN as u64;
         let dir_bytes = read_vec(self.src, sections.directory_offset, dir_len)?;
         let entries = self.directory(&header, &dir_bytes, trailer.as_ref())?;
-        let resident: u64 = entries.iter().flatten().filter(|e| e.kind == BlockKind::Proxy).map(|e| u64::from(e.raw_length)).sum();
+        let resident: u64 = entries
+            .iter()
+            .flatten()
+            .filter(|e| e.kind == BlockKind::Proxy)
+            .map(|e| u64::from(e.raw_length))
+            .sum();
         if resident > self.opts.limits.max_resident_bytes {
-            self.note(Error::limit("resident proxies", resident, self.opts.limits.max_resident_bytes))?;
+            self.note(Error::limit(
+                "resident proxies",
+                resident,
+                self.opts.limits.max_resident_bytes,
+            ))?;
         }
         let (metadata, meta_bytes) = match &trailer {
             Some(t) => match read_metadata(self.src, &header, t, &self.opts.limits) {
@@ -147,14 +198,30 @@ impl Verifier<'_> {
         if let (Some(t), Some(mb)) = (&trailer, &meta_bytes) {
             let computed = root_checksum(&header_bytes, &dir_bytes, mb);
             if computed != t.root_checksum {
-                self.note_code(Code::RootChecksum, format!("root checksum: stored {:#010x}, computed {computed:#010x}", t.root_checksum), None);
+                self.note_code(
+                    Code::RootChecksum,
+                    format!(
+                        "root checksum: stored {:#010x}, computed {computed:#010x}",
+                        t.root_checksum
+                    ),
+                    None,
+                );
             }
         }
-        Ok(Some(Index { header, entries, metadata }))
+        Ok(Some(Index {
+            header,
+            entries,
+            metadata,
+        }))
     }
 
     /// Picks the section table to trust: the header's and trailer's must agree and tile the file.
-    fn choose_sections(&mut self, header: &Header, header_ok: bool, trailer: Option<&Trailer>) -> Result<Option<SectionTable>> {
+    fn choose_sections(
+        &mut self,
+        header: &Header,
+        header_ok: bool,
+        trailer: Option<&Trailer>,
+    ) -> Result<Option<SectionTable>> {
         let len = self.src.len();
         let mut candidates = Vec::new();
         if let Some(t) = trailer {
@@ -165,7 +232,14 @@ impl Verifier<'_> {
         }
         if let (Some(t), true) = (trailer, header_ok) {
             if t.sections != header.sections {
-                self.note_code(Code::Layout, format!("header says {:?}, trailer says {:?}", header.sections, t.sections), None);
+                self.note_code(
+                    Code::Layout,
+                    format!(
+                        "header says {:?}, trailer says {:?}",
+                        header.sections, t.sections
+                    ),
+                    None,
+                );
             }
         }
         let mut first_err = None;
@@ -183,12 +257,24 @@ impl Verifier<'_> {
         Ok(None)
     }
 
-    fn directory(&mut self, header: &Header, bytes: &[u8], trailer: Option<&Trailer>) -> Result<Vec<Option<BlockEntry>>> {
+    fn directory(
+        &mut self,
+        header: &Header,
+        bytes: &[u8],
+        trailer: Option<&Trailer>,
+    ) -> Result<Vec<Option<BlockEntry>>> {
         let at = header.sections.directory_offset;
         if let Some(t) = trailer {
             let computed = crate::checksum::crc32c(bytes);
             if computed != t.directory_crc {
-                self.note_code(Code::DirectoryChecksum, format!("directory checksum: stored {:#010x}, computed {computed:#010x}", t.directory_crc), None);
+                self.note_code(
+                    Code::DirectoryChecksum,
+                    format!(
+                        "directory checksum: stored {:#010x}, computed {computed:#010x}",
+                        t.directory_crc
+                    ),
+                    None,
+                );
             }
         }
         let mut entries = Vec::with_capacity(bytes.len() / ENTRY_LEN);
@@ -211,9 +297,19 @@ impl Verifier<'_> {
     }
 
     /// Reads, checks and surveys every block, in parallel, keeping results in block order.
-    fn blocks(&mut self, index: &Index, progress: &(dyn Fn(u64) + Sync)) -> Result<Vec<Option<BlockFacts>>> {
-        let ropts = ReadOptions { limits: self.opts.limits, checksums: self.opts.checksums };
-        let attrs = index.metadata.as_ref().map(|m| m.schema.triangle_attributes());
+    fn blocks(
+        &mut self,
+        index: &Index,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<Vec<Option<BlockFacts>>> {
+        let ropts = ReadOptions {
+            limits: self.opts.limits,
+            checksums: self.opts.checksums,
+        };
+        let attrs = index
+            .metadata
+            .as_ref()
+            .map(|m| m.schema.triangle_attributes());
         let done = AtomicU64::new(0);
         let src = self.src;
         let results: Vec<Option<Result<BlockFacts>>> = index
@@ -221,8 +317,12 @@ impl Verifier<'_> {
             .par_iter()
             .map(|e| {
                 let e = e.as_ref().filter(|e| e.stored_length > 0)?;
-                let r = read_block_data(src, e, &ropts).and_then(|raw| survey_block(e, &raw, attrs));
-                progress(done.fetch_add(u64::from(e.stored_length), Ordering::Relaxed) + u64::from(e.stored_length));
+                let r =
+                    read_block_data(src, e, &ropts).and_then(|raw| survey_block(e, &raw, attrs));
+                progress(
+                    done.fetch_add(u64::from(e.stored_length), Ordering::Relaxed)
+                        + u64::from(e.stored_length),
+                );
                 Some(r)
             })
             .collect();

@@ -25,7 +25,13 @@ fn code_str<S: serde::Serializer>(c: &Code, s: S) -> Result<S::Ok, S::Error> {
 
 impl Issue {
     pub fn from_error(e: &Error) -> Issue {
-        Issue { code: e.code(), severity: e.code().severity(), message: e.kind.to_string(), block: e.block, offset: e.offset }
+        Issue {
+            code: e.code(),
+            severity: e.code().severity(),
+            message: e.kind.to_string(),
+            block: e.block,
+            offset: e.offset,
+        }
     }
 }
 

@@ -12,7 +12,6 @@ use crate::reader::{read_block_data, ReadOptions};
 use crate::records::{Node, TreeletBlock, MAX_TREE_DEPTH as MAX_DEPTH, NO_PROXY};
 use crate::summary::BlockFacts;
 
-
 /// What a treelet root inherits from its parent LOD node.
 #[derive(Clone, Copy)]
 struct Inherit {
@@ -30,8 +29,14 @@ struct Walk<'a> {
     counts: Counts,
 }
 
-pub(super) fn check(v: &mut Verifier<'_>, index: &Index, facts: &[Option<BlockFacts>]) -> Result<()> {
-    let Some(meta) = &index.metadata else { return Ok(()) };
+pub(super) fn check(
+    v: &mut Verifier<'_>,
+    index: &Index,
+    facts: &[Option<BlockFacts>],
+) -> Result<()> {
+    let Some(meta) = &index.metadata else {
+        return Ok(());
+    };
     let proxy_blocks = facts
         .iter()
         .flat_map(|f| match f {
@@ -39,23 +44,51 @@ pub(super) fn check(v: &mut Verifier<'_>, index: &Index, facts: &[Option<BlockFa
             _ => Vec::new(),
         })
         .collect();
-    let mut w = Walk { entries: &index.entries, facts, proxy_blocks, pending: HashMap::new(), reached: HashSet::new(), counts: Counts::default() };
+    let mut w = Walk {
+        entries: &index.entries,
+        facts,
+        proxy_blocks,
+        pending: HashMap::new(),
+        reached: HashSet::new(),
+        counts: Counts::default(),
+    };
     match meta.root {
-        None if index.entries.is_empty() => v.note_code(Code::TreeEmpty, "the file holds no geometry".into(), None),
+        None if index.entries.is_empty() => {
+            v.note_code(Code::TreeEmpty, "the file holds no geometry".into(), None)
+        }
         None => v.note_code(Code::TreeRoot, "blocks but no root".into(), None),
         Some(root) => {
             let ok = matches!(w.entry(root.block), Some(e) if e.kind == BlockKind::Treelet && e.level == 0 && root.treelet < e.item_count);
             if !ok {
-                v.note_code(Code::TreeRoot, format!("root {root:?} is not a treelet of a level-0 treelet block"), None);
+                v.note_code(
+                    Code::TreeRoot,
+                    format!("root {root:?} is not a treelet of a level-0 treelet block"),
+                    None,
+                );
             } else {
-                let cell = [meta.scene.bounds_min.map(f64::from), meta.scene.bounds_max.map(f64::from)];
-                w.pending.insert(root, Inherit { cell, depth: 0, max_radius: f32::INFINITY });
+                let cell = [
+                    meta.scene.bounds_min.map(f64::from),
+                    meta.scene.bounds_max.map(f64::from),
+                ];
+                w.pending.insert(
+                    root,
+                    Inherit {
+                        cell,
+                        depth: 0,
+                        max_radius: f32::INFINITY,
+                    },
+                );
             }
         }
     }
-    let ropts = ReadOptions { limits: v.opts.limits, checksums: v.opts.checksums };
+    let ropts = ReadOptions {
+        limits: v.opts.limits,
+        checksums: v.opts.checksums,
+    };
     for (id, e) in (0u32..).zip(&index.entries) {
-        let Some(e) = (*e).filter(|e| e.kind == BlockKind::Treelet) else { continue };
+        let Some(e) = (*e).filter(|e| e.kind == BlockKind::Treelet) else {
+            continue;
+        };
         if !matches!(facts.get(id as usize), Some(Some(_))) {
             continue; // already reported by the block pass
         }
@@ -66,7 +99,9 @@ pub(super) fn check(v: &mut Verifier<'_>, index: &Index, facts: &[Option<BlockFa
                 continue;
             }
         };
-        let Ok(block) = TreeletBlock::parse(&raw) else { continue };
+        let Ok(block) = TreeletBlock::parse(&raw) else {
+            continue;
+        };
         w.block(v, id, &e, &block);
     }
     w.totals(v, index);
@@ -81,10 +116,17 @@ impl Walk<'_> {
     fn block(&mut self, v: &mut Verifier<'_>, id: u32, e: &BlockEntry, block: &TreeletBlock<'_>) {
         self.counts.lod_levels = self.counts.lod_levels.max(u32::from(e.level) + 1);
         for t in 0..block.treelet_count() {
-            let key = TreeletRef { block: id, treelet: t as u32 };
+            let key = TreeletRef {
+                block: id,
+                treelet: t as u32,
+            };
             let Some(inh) = self.pending.remove(&key) else {
                 if !self.reached.contains(&key) {
-                    v.note_code(Code::TreeUnreachable, format!("treelet {t} is not reached from the root"), Some(id));
+                    v.note_code(
+                        Code::TreeUnreachable,
+                        format!("treelet {t} is not reached from the root"),
+                        Some(id),
+                    );
                 }
                 continue;
             };
@@ -95,17 +137,34 @@ impl Walk<'_> {
         }
     }
 
-    fn treelet(&mut self, v: &mut Verifier<'_>, id: u32, e: &BlockEntry, block: &TreeletBlock<'_>, root: usize, inh: Inherit) {
+    fn treelet(
+        &mut self,
+        v: &mut Verifier<'_>,
+        id: u32,
+        e: &BlockEntry,
+        block: &TreeletBlock<'_>,
+        root: usize,
+        inh: Inherit,
+    ) {
         let mut stack = vec![(root, inh.cell, inh.depth + 1)];
         while let Some((pos, cell, depth)) = stack.pop() {
             if depth > MAX_DEPTH {
-                v.note_code(Code::TreeDepth, format!("node at {pos} is at depth {depth}, over {MAX_DEPTH}"), Some(id));
+                v.note_code(
+                    Code::TreeDepth,
+                    format!("node at {pos} is at depth {depth}, over {MAX_DEPTH}"),
+                    Some(id),
+                );
                 continue;
             }
             self.counts.depth = self.counts.depth.max(depth);
             let Ok(node) = block.node(pos) else { continue };
             match node {
-                Node::Basic { axis, split, left, right } => {
+                Node::Basic {
+                    axis,
+                    split,
+                    left,
+                    right,
+                } => {
                     self.counts.basic_nodes += 1;
                     let (lc, rc) = split_cell(v, id, pos, cell, axis, split);
                     if right != 0 {
@@ -115,7 +174,17 @@ impl Walk<'_> {
                         stack.push((TreeletBlock::child_pos(pos, left), lc, depth + 1));
                     }
                 }
-                Node::Lod { axis, split, radius, left_present, right_present, child_treelet, child_block, voxel_offset, proxy } => {
+                Node::Lod {
+                    axis,
+                    split,
+                    radius,
+                    left_present,
+                    right_present,
+                    child_treelet,
+                    child_block,
+                    voxel_offset,
+                    proxy,
+                } => {
                     self.counts.lod_nodes += 1;
                     if let Ok(vox) = block.voxel(voxel_offset) {
                         match vox {
@@ -126,13 +195,31 @@ impl Walk<'_> {
                     self.lod_radius(v, id, pos, cell, radius, inh.max_radius);
                     let (lc, rc) = split_cell(v, id, pos, cell, axis, split);
                     let children = [(left_present, lc), (right_present, rc)];
-                    self.lod_children(v, id, e, pos, child_block, child_treelet, children, depth, radius);
+                    self.lod_children(
+                        v,
+                        id,
+                        e,
+                        pos,
+                        child_block,
+                        child_treelet,
+                        children,
+                        depth,
+                        radius,
+                    );
                     self.proxy(v, id, pos, proxy);
                 }
-                Node::Leaf { count, first, block: tb } => {
+                Node::Leaf {
+                    count,
+                    first,
+                    block: tb,
+                } => {
                     self.counts.leaves += 1;
                     let list = match (self.entry(tb), self.facts.get(tb as usize)) {
-                        (Some(te), Some(Some(BlockFacts::Triangle { list, .. }))) if te.kind == BlockKind::Triangle => Some(*list),
+                        (Some(te), Some(Some(BlockFacts::Triangle { list, .. })))
+                            if te.kind == BlockKind::Triangle =>
+                        {
+                            Some(*list)
+                        }
                         _ => None,
                     };
                     match list {
@@ -145,24 +232,66 @@ impl Walk<'_> {
         }
     }
 
-    fn lod_radius(&self, v: &mut Verifier<'_>, id: u32, pos: usize, cell: [[f64; 3]; 2], radius: f32, ancestor: f32) {
+    fn lod_radius(
+        &self,
+        v: &mut Verifier<'_>,
+        id: u32,
+        pos: usize,
+        cell: [[f64; 3]; 2],
+        radius: f32,
+        ancestor: f32,
+    ) {
         if radius > ancestor {
-            v.note_code(Code::TreeLodRadius, format!("LOD node at {pos}: radius {radius} exceeds its ancestor's {ancestor}"), Some(id));
+            v.note_code(
+                Code::TreeLodRadius,
+                format!("LOD node at {pos}: radius {radius} exceeds its ancestor's {ancestor}"),
+                Some(id),
+            );
         }
-        let half_diag = (0..3).map(|a| (cell[1][a] - cell[0][a]).powi(2)).sum::<f64>().sqrt() / 2.0;
+        let half_diag = (0..3)
+            .map(|a| (cell[1][a] - cell[0][a]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+            / 2.0;
         if f64::from(radius) < half_diag * (1.0 - 1e-6) {
             v.note_code(Code::TreeLodRadius, format!("LOD node at {pos}: radius {radius} is below its cell's half diagonal {half_diag}"), Some(id));
         }
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn lod_children(&mut self, v: &mut Verifier<'_>, id: u32, e: &BlockEntry, pos: usize, child_block: u32, first: u32, children: [(bool, [[f64; 3]; 2]); 2], depth: u32, radius: f32) {
-        let Some(ce) = self.entry(child_block).filter(|c| c.kind == BlockKind::Treelet) else {
-            v.note_code(Code::TreeReference, format!("LOD node at {pos}: child block {child_block} is not a treelet block"), Some(id));
+    fn lod_children(
+        &mut self,
+        v: &mut Verifier<'_>,
+        id: u32,
+        e: &BlockEntry,
+        pos: usize,
+        child_block: u32,
+        first: u32,
+        children: [(bool, [[f64; 3]; 2]); 2],
+        depth: u32,
+        radius: f32,
+    ) {
+        let Some(ce) = self
+            .entry(child_block)
+            .filter(|c| c.kind == BlockKind::Treelet)
+        else {
+            v.note_code(
+                Code::TreeReference,
+                format!("LOD node at {pos}: child block {child_block} is not a treelet block"),
+                Some(id),
+            );
             return;
         };
         if u32::from(ce.level) != u32::from(e.level) + 1 {
-            v.note_code(Code::TreeLevel, format!("LOD node at {pos}: child block {child_block} has level {}, not {}", ce.level, e.level + 1), Some(id));
+            v.note_code(
+                Code::TreeLevel,
+                format!(
+                    "LOD node at {pos}: child block {child_block} has level {}, not {}",
+                    ce.level,
+                    e.level + 1
+                ),
+                Some(id),
+            );
             return;
         }
         let mut index = first;
@@ -171,11 +300,33 @@ impl Walk<'_> {
                 continue;
             }
             if index >= ce.item_count {
-                v.note_code(Code::TreeReference, format!("LOD node at {pos}: treelet {index} of block {child_block}, which has {}", ce.item_count), Some(id));
+                v.note_code(
+                    Code::TreeReference,
+                    format!(
+                        "LOD node at {pos}: treelet {index} of block {child_block}, which has {}",
+                        ce.item_count
+                    ),
+                    Some(id),
+                );
                 return;
             }
-            let key = TreeletRef { block: child_block, treelet: index };
-            if self.reached.contains(&key) || self.pending.insert(key, Inherit { cell, depth, max_radius: radius }).is_some() {
+            let key = TreeletRef {
+                block: child_block,
+                treelet: index,
+            };
+            if self.reached.contains(&key)
+                || self
+                    .pending
+                    .insert(
+                        key,
+                        Inherit {
+                            cell,
+                            depth,
+                            max_radius: radius,
+                        },
+                    )
+                    .is_some()
+            {
                 v.note_code(Code::TreeShared, format!("LOD node at {pos}: treelet {index} of block {child_block} is reached twice"), Some(id));
             }
             index += 1;
@@ -188,8 +339,19 @@ impl Walk<'_> {
         }
         match self.proxy_blocks.get(proxy as usize) {
             Some(&b) if b == id => {}
-            Some(&b) => v.note_code(Code::TreeReference, format!("LOD node at {pos}: proxy {proxy} stands for block {b}, not this one"), Some(id)),
-            None => v.note_code(Code::TreeReference, format!("LOD node at {pos}: proxy {proxy} of {}", self.proxy_blocks.len()), Some(id)),
+            Some(&b) => v.note_code(
+                Code::TreeReference,
+                format!("LOD node at {pos}: proxy {proxy} stands for block {b}, not this one"),
+                Some(id),
+            ),
+            None => v.note_code(
+                Code::TreeReference,
+                format!(
+                    "LOD node at {pos}: proxy {proxy} of {}",
+                    self.proxy_blocks.len()
+                ),
+                Some(id),
+            ),
         }
     }
 
@@ -201,13 +363,24 @@ impl Walk<'_> {
         c.proxies = self.proxy_blocks.len() as u64;
         let mut max_material: Option<u16> = None;
         for (id, f) in (0u32..).zip(self.facts) {
-            if let Some(BlockFacts::Triangle { triangles, vertices, primaries, max_material: mm, .. }) = f {
+            if let Some(BlockFacts::Triangle {
+                triangles,
+                vertices,
+                primaries,
+                max_material: mm,
+                ..
+            }) = f
+            {
                 c.triangles += u64::from(*primaries);
                 c.triangle_records += u64::from(*triangles);
                 c.vertices += u64::from(*vertices);
                 if let Some(m) = *mm {
                     if usize::from(m) >= meta.materials.len() {
-                        v.note_code(Code::TreeMaterial, format!("material {m} of {}", meta.materials.len()), Some(id));
+                        v.note_code(
+                            Code::TreeMaterial,
+                            format!("material {m} of {}", meta.materials.len()),
+                            Some(id),
+                        );
                     }
                     max_material = max_material.max(Some(m));
                 }
@@ -226,30 +399,69 @@ impl Walk<'_> {
             ("proxies", m.proxies, c.proxies),
             ("treelets", m.treelets, c.treelets),
             ("depth", u64::from(m.depth), u64::from(c.depth)),
-            ("lod_levels", u64::from(m.lod_levels), u64::from(c.lod_levels)),
+            (
+                "lod_levels",
+                u64::from(m.lod_levels),
+                u64::from(c.lod_levels),
+            ),
         ];
         for (name, said, found) in fields {
             if said != found {
-                v.note_code(Code::TreeCounts, format!("metadata counts.{name} = {said}, the tree has {found}"), None);
+                v.note_code(
+                    Code::TreeCounts,
+                    format!("metadata counts.{name} = {said}, the tree has {found}"),
+                    None,
+                );
             }
         }
         if meta.schema.six_sample_voxels != (c.voxels_six > 0) {
-            v.note_code(Code::TreeCounts, format!("schema.six_sample_voxels = {}, the tree has {} six-sample voxels", meta.schema.six_sample_voxels, c.voxels_six), None);
+            v.note_code(
+                Code::TreeCounts,
+                format!(
+                    "schema.six_sample_voxels = {}, the tree has {} six-sample voxels",
+                    meta.schema.six_sample_voxels, c.voxels_six
+                ),
+                None,
+            );
         }
         let features = index.header.compatible_features;
-        let has_proxy_blocks = index.entries.iter().flatten().any(|e| e.kind == BlockKind::Proxy);
-        if (features & COMPAT_PROXIES != 0) != has_proxy_blocks || (features & COMPAT_LOD_VOXELS != 0) != (c.lod_nodes > 0) {
-            v.note_code(Code::HeaderFeatureMismatch, format!("compatible features {features:#x} do not match the content"), None);
+        let has_proxy_blocks = index
+            .entries
+            .iter()
+            .flatten()
+            .any(|e| e.kind == BlockKind::Proxy);
+        if (features & COMPAT_PROXIES != 0) != has_proxy_blocks
+            || (features & COMPAT_LOD_VOXELS != 0) != (c.lod_nodes > 0)
+        {
+            v.note_code(
+                Code::HeaderFeatureMismatch,
+                format!("compatible features {features:#x} do not match the content"),
+                None,
+            );
         }
     }
 }
 
 /// The two child cells of a split; reports a split plane outside the cell.
-fn split_cell(v: &mut Verifier<'_>, id: u32, pos: usize, cell: [[f64; 3]; 2], axis: u8, split: f32) -> ([[f64; 3]; 2], [[f64; 3]; 2]) {
+fn split_cell(
+    v: &mut Verifier<'_>,
+    id: u32,
+    pos: usize,
+    cell: [[f64; 3]; 2],
+    axis: u8,
+    split: f32,
+) -> ([[f64; 3]; 2], [[f64; 3]; 2]) {
     let a = usize::from(axis.min(2));
     let s = f64::from(split);
     if !(cell[0][a] <= s && s <= cell[1][a]) {
-        v.note_code(Code::TreeSplit, format!("node at {pos}: split {split} on axis {a} outside the cell {}..{}", cell[0][a], cell[1][a]), Some(id));
+        v.note_code(
+            Code::TreeSplit,
+            format!(
+                "node at {pos}: split {split} on axis {a} outside the cell {}..{}",
+                cell[0][a], cell[1][a]
+            ),
+            Some(id),
+        );
     }
     // max/min rather than clamp: they cannot panic, whatever the bounds hold.
     let s = s.max(cell[0][a]).min(cell[1][a]);

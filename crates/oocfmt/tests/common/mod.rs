@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 use oocfmt::metadata::{Build, Counts, Material, Provenance, Scene, Schema, TreeletRef};
 use oocfmt::records::triangle::{oct_encode, ATTR_COLOURS, ATTR_MATERIALS, ATTR_NORMALS};
 use oocfmt::records::{
-    Node, ProxyRecord, Sample, Triangle, TreeletBlockWriter, TriangleBlockWriter, Vertex, Voxel, NO_PROXY, PROXY_DIRECTIONS,
+    Node, ProxyRecord, Sample, TreeletBlockWriter, Triangle, TriangleBlockWriter, Vertex, Voxel,
+    NO_PROXY, PROXY_DIRECTIONS,
 };
 use oocfmt::verify::{verify, Depth, Report, VerifyOptions};
 use oocfmt::{BlockKind, Code, Codec, Metadata, Reader, Severity, WriteOptions, Writer};
@@ -34,12 +35,20 @@ pub fn vectors_dir() -> PathBuf {
 /// Every `spec/vectors/*.oocf`, sorted by name; empty while the vectors do not exist yet.
 pub fn vectors() -> TestResult<Vec<NamedFile>> {
     let mut out = Vec::new();
-    let Ok(dir) = std::fs::read_dir(vectors_dir()) else { return Ok(out) };
+    let Ok(dir) = std::fs::read_dir(vectors_dir()) else {
+        return Ok(out);
+    };
     for entry in dir {
         let path = entry?.path();
         if path.extension().is_some_and(|e| e == "oocf") {
-            let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-            out.push(NamedFile { name, bytes: std::fs::read(&path)? });
+            let name = path
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            out.push(NamedFile {
+                name,
+                bytes: std::fs::read(&path)?,
+            });
         }
     }
     out.sort_by(|a, b| a.name.cmp(&b.name));
@@ -53,7 +62,10 @@ pub fn fixtures() -> TestResult<Vec<NamedFile>> {
     for (name, build) in FIXTURES {
         let path = dir.path().join(format!("{name}.oocf"));
         build(&path)?;
-        out.push(NamedFile { name: (*name).to_string(), bytes: std::fs::read(&path)? });
+        out.push(NamedFile {
+            name: (*name).to_string(),
+            bytes: std::fs::read(&path)?,
+        });
     }
     Ok(out)
 }
@@ -78,38 +90,74 @@ pub const FIXTURES: &[(&str, Build1)] = &[
 pub fn fixture(name: &str) -> TestResult<Vec<u8>> {
     let dir = tempfile::tempdir()?;
     let path = dir.path().join("f.oocf");
-    let build = FIXTURES.iter().find(|(n, _)| *n == name).map(|(_, b)| *b).ok_or_else(|| format!("no fixture {name}"))?;
+    let build = FIXTURES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, b)| *b)
+        .ok_or_else(|| format!("no fixture {name}"))?;
     build(&path)?;
     Ok(std::fs::read(&path)?)
 }
 
 fn opts(block_size_log2: u8, codec: Codec) -> WriteOptions {
-    WriteOptions { block_size_log2, codec }
+    WriteOptions {
+        block_size_log2,
+        codec,
+    }
 }
 
 fn leaf(first: u16, count: u16, block: u32) -> Node {
-    Node::Leaf { count, first, block }
+    Node::Leaf {
+        count,
+        first,
+        block,
+    }
 }
 
-fn metadata(scene: Scene, root: Option<TreeletRef>, counts: Counts, schema: Schema, materials: Vec<Material>, height: u8) -> Metadata {
+fn metadata(
+    scene: Scene,
+    root: Option<TreeletRef>,
+    counts: Counts,
+    schema: Schema,
+    materials: Vec<Material>,
+    height: u8,
+) -> Metadata {
     Metadata {
         scene,
         root,
         counts,
         schema,
         materials,
-        build: Build { treelet_height: height, max_leaf_triangles: 4, params: vec![("fixture".into(), "yes".into())] },
-        provenance: Provenance { generator: "oocfmt tests/common".into(), sources: vec!["hand-built".into()] },
+        build: Build {
+            treelet_height: height,
+            max_leaf_triangles: 4,
+            params: vec![("fixture".into(), "yes".into())],
+        },
+        provenance: Provenance {
+            generator: "oocfmt tests/common".into(),
+            sources: vec!["hand-built".into()],
+        },
     }
 }
 
 fn scene(min: [f32; 3], max: [f32; 3]) -> Scene {
-    Scene { bounds_min: min, bounds_max: max, origin: [100.0, -50.0, 0.25] }
+    Scene {
+        bounds_min: min,
+        bounds_max: max,
+        origin: [100.0, -50.0, 0.25],
+    }
 }
 
 /// Six face samples for a voxel: each face's outward normal, a colour per face.
 fn six_samples() -> [Sample; 6] {
-    let n = [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0], [0.0, 0.0, 1.0]];
+    let n = [
+        [-1.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, -1.0],
+        [0.0, 0.0, 1.0],
+    ];
     let mut s = [Sample(0); 6];
     for (k, slot) in s.iter_mut().enumerate() {
         *slot = Sample::pack(n[k], [k as f32 / 5.0, 0.5, 1.0 - k as f32 / 5.0]);
@@ -127,11 +175,18 @@ fn proxy(node_block: u32, area: f32) -> ProxyRecord {
             *slot = Sample::pack([-d[0], -d[1], -d[2]], [0.25, k as f32 / 17.0, 0.75]);
         }
     }
-    ProxyRecord { node_block, area, samples }
+    ProxyRecord {
+        node_block,
+        area,
+        samples,
+    }
 }
 
 fn square_vertices(w: &mut TriangleBlockWriter, z: f32, attrs: u16) -> TestResult {
-    for (i, p) in [[0.0, 0.0, z], [1.0, 0.0, z], [1.0, 1.0, z], [0.0, 1.0, z]].into_iter().enumerate() {
+    for (i, p) in [[0.0, 0.0, z], [1.0, 0.0, z], [1.0, 1.0, z], [0.0, 1.0, z]]
+        .into_iter()
+        .enumerate()
+    {
         let v = Vertex {
             position: p,
             normal: (attrs & ATTR_NORMALS != 0).then(|| oct_encode([0.0, 0.3, 1.0])),
@@ -148,14 +203,25 @@ pub fn write_quad(path: &Path) -> TestResult<oocfmt::WriteSummary> {
     let mut w = Writer::create(path, opts(12, Codec::None))?;
     let mut t = TreeletBlockWriter::new();
     t.begin_treelet();
-    t.push_node(&Node::Basic { axis: 0, split: 0.5, left: 1, right: 2 });
+    t.push_node(&Node::Basic {
+        axis: 0,
+        split: 0.5,
+        left: 1,
+        right: 2,
+    });
     t.push_node(&leaf(0, 1, 1));
     t.push_node(&leaf(1, 1, 1));
     let root = w.write_block(BlockKind::Treelet, 0, 1, &t.finish())?;
     let mut tri = TriangleBlockWriter::new(0);
     square_vertices(&mut tri, 0.0, 0)?;
-    tri.push_triangle(Triangle { v: [0, 1, 2], material: None })?;
-    tri.push_triangle(Triangle { v: [0, 2, 3], material: None })?;
+    tri.push_triangle(Triangle {
+        v: [0, 1, 2],
+        material: None,
+    })?;
+    tri.push_triangle(Triangle {
+        v: [0, 2, 3],
+        material: None,
+    })?;
     tri.push_list(1)?;
     tri.push_list(0)?;
     tri.set_primary_count(2);
@@ -174,7 +240,10 @@ pub fn write_quad(path: &Path) -> TestResult<oocfmt::WriteSummary> {
     };
     let meta = metadata(
         scene([0.0; 3], [1.0, 1.0, 0.0]),
-        Some(TreeletRef { block: 0, treelet: 0 }),
+        Some(TreeletRef {
+            block: 0,
+            treelet: 0,
+        }),
         counts,
         Schema::default(),
         Vec::new(),
@@ -193,7 +262,12 @@ pub fn write_lod(path: &Path) -> TestResult<oocfmt::WriteSummary> {
     // Block 0: level 0.
     let mut t = TreeletBlockWriter::new();
     t.begin_treelet();
-    t.push_node(&Node::Basic { axis: 0, split: 1.0, left: 1, right: 4 });
+    t.push_node(&Node::Basic {
+        axis: 0,
+        split: 1.0,
+        left: 1,
+        right: 4,
+    });
     let vox = t.push_voxel(&Voxel::Six(six_samples()));
     t.push_node(&Node::Lod {
         axis: 1,
@@ -220,7 +294,10 @@ pub fn write_lod(path: &Path) -> TestResult<oocfmt::WriteSummary> {
     square_vertices(&mut tri, 0.5, attrs)?;
     for i in 0..48u16 {
         let v = if i % 2 == 0 { [0, 1, 2] } else { [0, 2, 3] };
-        tri.push_triangle(Triangle { v, material: Some(i % 2) })?;
+        tri.push_triangle(Triangle {
+            v,
+            material: Some(i % 2),
+        })?;
     }
     for e in [0, 1, 2, 3, 47] {
         tri.push_list(e)?;
@@ -245,12 +322,33 @@ pub fn write_lod(path: &Path) -> TestResult<oocfmt::WriteSummary> {
         depth: 3,
         lod_levels: 2,
     };
-    let schema = Schema { vertex_normals: true, vertex_colours: true, triangle_materials: true, six_sample_voxels: true };
+    let schema = Schema {
+        vertex_normals: true,
+        vertex_colours: true,
+        triangle_materials: true,
+        six_sample_voxels: true,
+    };
     let materials = vec![
-        Material { name: "white".into(), diffuse: [0.9, 0.9, 0.9] },
-        Material { name: "rouge ✓".into(), diffuse: [0.8, 0.1, 0.1] },
+        Material {
+            name: "white".into(),
+            diffuse: [0.9, 0.9, 0.9],
+        },
+        Material {
+            name: "rouge ✓".into(),
+            diffuse: [0.8, 0.1, 0.1],
+        },
     ];
-    let meta = metadata(scene([0.0; 3], [2.0, 1.0, 1.0]), Some(TreeletRef { block: 0, treelet: 0 }), counts, schema, materials, 2);
+    let meta = metadata(
+        scene([0.0; 3], [2.0, 1.0, 1.0]),
+        Some(TreeletRef {
+            block: 0,
+            treelet: 0,
+        }),
+        counts,
+        schema,
+        materials,
+        2,
+    );
     Ok(w.finish(&meta)?)
 }
 
@@ -265,7 +363,10 @@ pub fn write_deep(path: &Path) -> TestResult<oocfmt::WriteSummary> {
         let mut tri = TriangleBlockWriter::new(attrs);
         square_vertices(&mut tri, z, attrs)?;
         for i in 0..n {
-            tri.push_triangle(Triangle { v: if i % 2 == 0 { [0, 1, 2] } else { [2, 3, 0] }, material: None })?;
+            tri.push_triangle(Triangle {
+                v: if i % 2 == 0 { [0, 1, 2] } else { [2, 3, 0] },
+                material: None,
+            })?;
         }
         for e in 0..n.min(6) {
             tri.push_list(e)?;
@@ -273,7 +374,10 @@ pub fn write_deep(path: &Path) -> TestResult<oocfmt::WriteSummary> {
         tri.set_primary_count(n - 1);
         Ok(tri.finish())
     };
-    assert_eq!(w.write_block(BlockKind::Triangle, 0, 40, &tri_block(0.5, 40)?)?, 0);
+    assert_eq!(
+        w.write_block(BlockKind::Triangle, 0, 40, &tri_block(0.5, 40)?)?,
+        0
+    );
     let single = |c: f32| Voxel::Single(Sample::pack([0.0, 1.0, 0.2], [c, c, c]));
     // Block 1: level 0, the root treelet is a lone LOD node.
     let mut t = TreeletBlockWriter::new();
@@ -313,11 +417,19 @@ pub fn write_deep(path: &Path) -> TestResult<oocfmt::WriteSummary> {
         proxy: 1,
     });
     t.begin_treelet();
-    t.push_node(&Node::Basic { axis: 2, split: 1.0, left: 1, right: 2 });
+    t.push_node(&Node::Basic {
+        axis: 2,
+        split: 1.0,
+        left: 1,
+        right: 2,
+    });
     t.push_node(&leaf(0, 3, 0));
     t.push_node(&leaf(0, 2, 4));
     assert_eq!(w.write_block(BlockKind::Treelet, 1, 2, &t.finish())?, 3);
-    assert_eq!(w.write_block(BlockKind::Triangle, 0, 24, &tri_block(1.5, 24)?)?, 4);
+    assert_eq!(
+        w.write_block(BlockKind::Triangle, 0, 24, &tri_block(1.5, 24)?)?,
+        4
+    );
     // Block 5: level 2.
     let mut t = TreeletBlockWriter::new();
     t.begin_treelet();
@@ -339,15 +451,35 @@ pub fn write_deep(path: &Path) -> TestResult<oocfmt::WriteSummary> {
         depth: 3,
         lod_levels: 3,
     };
-    let schema = Schema { vertex_normals: true, ..Schema::default() };
-    let meta = metadata(scene([0.0; 3], [2.0; 3]), Some(TreeletRef { block: 1, treelet: 0 }), counts, schema, Vec::new(), 1);
+    let schema = Schema {
+        vertex_normals: true,
+        ..Schema::default()
+    };
+    let meta = metadata(
+        scene([0.0; 3], [2.0; 3]),
+        Some(TreeletRef {
+            block: 1,
+            treelet: 0,
+        }),
+        counts,
+        schema,
+        Vec::new(),
+        1,
+    );
     Ok(w.finish(&meta)?)
 }
 
 /// No geometry: no blocks, no root (deep verify warns `TREE_EMPTY`, nothing else).
 pub fn write_empty(path: &Path) -> TestResult<oocfmt::WriteSummary> {
     let w = Writer::create(path, opts(16, Codec::Lz4))?;
-    let meta = metadata(scene([0.0; 3], [0.0; 3]), None, Counts::default(), Schema::default(), Vec::new(), 3);
+    let meta = metadata(
+        scene([0.0; 3], [0.0; 3]),
+        None,
+        Counts::default(),
+        Schema::default(),
+        Vec::new(),
+        3,
+    );
     Ok(w.finish(&meta)?)
 }
 
@@ -356,7 +488,10 @@ pub fn verify_bytes(bytes: &[u8], opts: &VerifyOptions) -> oocfmt::Result<Report
 }
 
 pub fn deep() -> VerifyOptions {
-    VerifyOptions { depth: Depth::Deep, ..VerifyOptions::default() }
+    VerifyOptions {
+        depth: Depth::Deep,
+        ..VerifyOptions::default()
+    }
 }
 
 /// Whether the report has at least one error-severity issue (and says invalid).
@@ -441,7 +576,10 @@ pub fn set_section_u32(b: &mut [u8], at: usize, tat: Option<usize>, v: u32) {
 
 /// The directory offset and entry count of a valid file.
 pub fn directory_of(b: &[u8]) -> (usize, usize) {
-    (get_u64(b, oocfmt::header::OFF_DIRECTORY_OFFSET) as usize, get_u32(b, oocfmt::header::OFF_BLOCK_COUNT) as usize)
+    (
+        get_u64(b, oocfmt::header::OFF_DIRECTORY_OFFSET) as usize,
+        get_u32(b, oocfmt::header::OFF_BLOCK_COUNT) as usize,
+    )
 }
 
 pub const NO_PROXY_ID: u32 = NO_PROXY;
@@ -473,6 +611,11 @@ pub fn with_metadata(b: &[u8], meta: &[u8]) -> TestResult<Vec<u8>> {
     out.extend_from_slice(meta);
     out.extend_from_slice(&b[b.len() - oocfmt::trailer::TRAILER_LEN..]);
     let len = u32::try_from(meta.len())?;
-    set_section_u32(&mut out, oocfmt::header::OFF_METADATA_LENGTH, Some(oocfmt::trailer::OFF_METADATA_LENGTH), len);
+    set_section_u32(
+        &mut out,
+        oocfmt::header::OFF_METADATA_LENGTH,
+        Some(oocfmt::trailer::OFF_METADATA_LENGTH),
+        len,
+    );
     reseal(&out)
 }
