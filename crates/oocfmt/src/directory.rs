@@ -139,8 +139,23 @@ impl BlockEntry {
                 format!("a {} block has level {}, not 0", kind.name(), e.level),
             );
         }
-        if e.item_count == 0 {
-            return bad(Code::EntryItemCount, "item count is zero");
+        // Every item costs bytes, so the raw length bounds the count before anything trusts it:
+        // a treelet at least a 4-byte start and an 8-byte node, a triangle 6 bytes, a proxy 80.
+        let most = match e.kind {
+            BlockKind::Treelet => e.raw_length.saturating_sub(16) / 12,
+            BlockKind::Triangle => e.raw_length.saturating_sub(16) / 6,
+            BlockKind::Proxy => e.raw_length / 80,
+        };
+        if e.item_count == 0 || e.item_count > most {
+            return bad(
+                Code::EntryItemCount,
+                format!(
+                    "{} items cannot fit a {}-byte {} block",
+                    e.item_count,
+                    e.raw_length,
+                    kind.name()
+                ),
+            );
         }
         Ok(e)
     }

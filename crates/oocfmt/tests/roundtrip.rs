@@ -961,6 +961,15 @@ proptest! {
         let codec = CodecId::from_u8(codec).ok_or_else(|| TestCaseError::fail("codec"))?;
         let (stored_length, raw_length) = if codec == CodecId::None { (raw, raw) } else { (raw.max(2) / 2, raw.max(2)) };
         let level = if kind == BlockKind::Treelet { level } else { 0 };
+        // The directory bounds item_count by what raw_length can hold (spec §4).
+        let most = match kind {
+            BlockKind::Treelet => raw_length.saturating_sub(16) / 12,
+            BlockKind::Triangle => raw_length.saturating_sub(16) / 6,
+            BlockKind::Proxy => raw_length / 80,
+        };
+        prop_assume!(most > 0);
+        let item_count = 1 + (item_count - 1) % most;
+        let offset = offset % (u64::MAX - 8192);
         let entry = BlockEntry { offset, stored_length, raw_length, crc, kind, codec, level, item_count };
         let mut v = Vec::new();
         entry.encode_into(&mut v);

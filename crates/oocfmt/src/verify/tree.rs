@@ -1,7 +1,7 @@
 //! Deep verification: the meaning of the tree. Walks every treelet from the root with the cell,
 //! depth and ancestor LOD radius it inherits, and checks every reference.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 
 use super::{Index, Verifier};
 use crate::directory::{BlockEntry, BlockKind};
@@ -20,12 +20,54 @@ struct Inherit {
     max_radius: f32,
 }
 
+/// Where a treelet stands in the walk.
+#[derive(Clone, Copy)]
+enum Slot {
+    Unseen,
+    Pending(Inherit),
+}
+
+/// Treelet states, one vector per block that has been referenced but not yet walked: a hash
+/// lookup per block rather than per treelet, and memory for about one LOD level at a time. A
+/// block's vector is dropped once walked; a later reference to it would need a child block
+/// before its parent, which `ENTRY_LEVEL` and `TREE_LEVEL` already report.
+#[derive(Default)]
+struct Slots {
+    by_block: HashMap<u32, Vec<Slot>>,
+    reached: u64,
+}
+
+impl Slots {
+    /// Marks treelet `r` (of a block of `count` treelets) as pending; false if it was already
+    /// pending or walked, i.e. reached twice.
+    fn expect(&mut self, r: TreeletRef, count: u32, inh: Inherit) -> bool {
+        let slots = self
+            .by_block
+            .entry(r.block)
+            .or_insert_with(|| vec![Slot::Unseen; count as usize]);
+        match slots.get_mut(r.treelet as usize) {
+            Some(slot @ Slot::Unseen) => {
+                *slot = Slot::Pending(inh);
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Takes the states of a block's treelets for walking it.
+    fn take(&mut self, block: u32, count: usize) -> Vec<Slot> {
+        let mut v = self.by_block.remove(&block).unwrap_or_default();
+        v.resize(count, Slot::Unseen);
+        v
+    }
+}
+
 struct Walk<'a> {
     entries: &'a [Option<BlockEntry>],
     facts: &'a [Option<BlockFacts>],
     proxy_blocks: Vec<u32>,
-    pending: HashMap<TreeletRef, Inherit>,
-    reached: HashSet<TreeletRef>,
+    slots: Slots,
+    stack: Vec<(usize, [[f64; 3]; 2], u32)>,
     counts: Counts,
 }
 
@@ -48,8 +90,8 @@ pub(super) fn check(
         entries: &index.entries,
         facts,
         proxy_blocks,
-        pending: HashMap::new(),
-        reached: HashSet::new(),
+        slots: Slots::default(),
+        stack: Vec::with_capacity(64),
         counts: Counts::default(),
     };
     match meta.root {
@@ -70,8 +112,10 @@ pub(super) fn check(
                     meta.scene.bounds_min.map(f64::from),
                     meta.scene.bounds_max.map(f64::from),
                 ];
-                w.pending.insert(
+                let count = w.treelet_count(root.block);
+                w.slots.expect(
                     root,
+                    count,
                     Inherit {
                         cell,
                         depth: 0,
@@ -113,24 +157,27 @@ impl Walk<'_> {
         self.entries.get(id as usize).copied().flatten()
     }
 
+    /// Treelets in block `id` as its decoded contents showed (0 for a block that failed).
+    fn treelet_count(&self, id: u32) -> u32 {
+        match self.facts.get(id as usize) {
+            Some(Some(BlockFacts::Treelet { nodes, .. })) => nodes.treelets as u32,
+            _ => 0,
+        }
+    }
+
     fn block(&mut self, v: &mut Verifier<'_>, id: u32, e: &BlockEntry, block: &TreeletBlock<'_>) {
         self.counts.lod_levels = self.counts.lod_levels.max(u32::from(e.level) + 1);
-        for t in 0..block.treelet_count() {
-            let key = TreeletRef {
-                block: id,
-                treelet: t as u32,
-            };
-            let Some(inh) = self.pending.remove(&key) else {
-                if !self.reached.contains(&key) {
-                    v.note_code(
-                        Code::TreeUnreachable,
-                        format!("treelet {t} is not reached from the root"),
-                        Some(id),
-                    );
-                }
+        let slots = self.slots.take(id, block.treelet_count());
+        for (t, slot) in slots.into_iter().enumerate() {
+            let Slot::Pending(inh) = slot else {
+                v.note_code(
+                    Code::TreeUnreachable,
+                    format!("treelet {t} is not reached from the root"),
+                    Some(id),
+                );
                 continue;
             };
-            self.reached.insert(key);
+            self.slots.reached += 1;
             if let Ok(span) = block.treelet_span(t) {
                 self.treelet(v, id, e, block, span.start, inh);
             }
@@ -146,7 +193,9 @@ impl Walk<'_> {
         root: usize,
         inh: Inherit,
     ) {
-        let mut stack = vec![(root, inh.cell, inh.depth + 1)];
+        let mut stack = std::mem::take(&mut self.stack);
+        stack.clear();
+        stack.push((root, inh.cell, inh.depth + 1));
         while let Some((pos, cell, depth)) = stack.pop() {
             if depth > MAX_DEPTH {
                 v.note_code(
@@ -230,6 +279,7 @@ impl Walk<'_> {
                 }
             }
         }
+        self.stack = stack;
     }
 
     fn lod_radius(
@@ -314,18 +364,14 @@ impl Walk<'_> {
                 block: child_block,
                 treelet: index,
             };
-            if self.reached.contains(&key)
-                || self
-                    .pending
-                    .insert(
-                        key,
-                        Inherit {
-                            cell,
-                            depth,
-                            max_radius: radius,
-                        },
-                    )
-                    .is_some()
+            let inherit = Inherit {
+                cell,
+                depth,
+                max_radius: radius,
+            };
+            if !self
+                .slots
+                .expect(key, self.treelet_count(child_block), inherit)
             {
                 v.note_code(Code::TreeShared, format!("LOD node at {pos}: treelet {index} of block {child_block} is reached twice"), Some(id));
             }
@@ -359,7 +405,7 @@ impl Walk<'_> {
     fn totals(&mut self, v: &mut Verifier<'_>, index: &Index) {
         let Some(meta) = &index.metadata else { return };
         let mut c = self.counts;
-        c.treelets = self.reached.len() as u64;
+        c.treelets = self.slots.reached;
         c.proxies = self.proxy_blocks.len() as u64;
         let mut max_material: Option<u16> = None;
         for (id, f) in (0u32..).zip(self.facts) {
