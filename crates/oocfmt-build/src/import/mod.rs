@@ -1,0 +1,205 @@
+//! Importers read model files and stream triangles into a [`TriangleSink`]; the sink owns the
+//! bad-input policy (drop and count, or fail under `--strict`), so every importer applies the
+//! same rules and the report adds up: triangles out = triangles in − triangles dropped.
+
+mod sink;
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use serde::Serialize;
+
+pub use sink::MeshSink;
+
+use oocfmt::metadata::Material;
+
+/// Where in the input something was found: file, and a line (text formats) or an item path
+/// (e.g. `mesh 3 primitive 1 triangle 17`).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Location {
+    pub file: String,
+    pub line: Option<u64>,
+    pub item: Option<String>,
+}
+
+impl Location {
+    pub fn file(file: impl Into<String>) -> Location {
+        Location {
+            file: file.into(),
+            line: None,
+            item: None,
+        }
+    }
+
+    pub fn line(file: impl Into<String>, line: u64) -> Location {
+        Location {
+            file: file.into(),
+            line: Some(line),
+            item: None,
+        }
+    }
+
+    pub fn item(file: impl Into<String>, item: impl Into<String>) -> Location {
+        Location {
+            file: file.into(),
+            line: None,
+            item: Some(item.into()),
+        }
+    }
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.file)?;
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+        }
+        if let Some(i) = &self.item {
+            write!(f, " ({i})")?;
+        }
+        Ok(())
+    }
+}
+
+/// One triangle as an importer produces it, in world space. Normals and colours are per
+/// corner and present only when the input has them; `material` indexes the materials added
+/// to the same sink.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InputTriangle {
+    pub positions: [[f32; 3]; 3],
+    pub normals: Option<[[f32; 3]; 3]>,
+    pub colours: Option<[[u8; 4]; 3]>,
+    pub material: Option<u32>,
+}
+
+impl InputTriangle {
+    pub fn new(positions: [[f32; 3]; 3]) -> InputTriangle {
+        InputTriangle {
+            positions,
+            normals: None,
+            colours: None,
+            material: None,
+        }
+    }
+}
+
+/// Why a triangle was dropped. Ordered as reported.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DropReason {
+    /// A position coordinate is NaN or infinite.
+    NonFinite,
+    /// A vertex index points outside the vertex data.
+    IndexOutOfRange,
+    /// Two corners coincide: the triangle has zero area.
+    ZeroArea,
+    /// Three distinct corners on one line: zero area too, but a different defect in the input.
+    Collinear,
+}
+
+impl DropReason {
+    pub fn describe(self) -> &'static str {
+        match self {
+            DropReason::NonFinite => "a coordinate is NaN or infinite",
+            DropReason::IndexOutOfRange => "a vertex index is out of range",
+            DropReason::ZeroArea => "two corners coincide (zero area)",
+            DropReason::Collinear => "the corners are collinear (zero area)",
+        }
+    }
+
+    /// The reason a triangle must be dropped for, if any, judged on its positions alone.
+    /// Exact arithmetic in f64: the cross product of two f32 edge vectors is exact enough that
+    /// only truly degenerate triangles are zero.
+    pub fn classify(p: &[[f32; 3]; 3]) -> Option<DropReason> {
+        if !p.iter().flatten().all(|c| c.is_finite()) {
+            return Some(DropReason::NonFinite);
+        }
+        if p[0] == p[1] || p[1] == p[2] || p[0] == p[2] {
+            return Some(DropReason::ZeroArea);
+        }
+        let d = |a: [f32; 3], b: [f32; 3]| {
+            [
+                f64::from(b[0]) - f64::from(a[0]),
+                f64::from(b[1]) - f64::from(a[1]),
+                f64::from(b[2]) - f64::from(a[2]),
+            ]
+        };
+        let (u, v) = (d(p[0], p[1]), d(p[0], p[2]));
+        let n = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        if n == [0.0; 3] {
+            return Some(DropReason::Collinear);
+        }
+        None
+    }
+}
+
+/// Elements of the input that are not triangles and are skipped on purpose, but counted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Skipped {
+    Lines,
+    Points,
+    /// glTF primitives of a mode other than the triangle modes.
+    NonTrianglePrimitives,
+}
+
+/// What the import saw, for the final report.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ImportReport {
+    pub files: Vec<String>,
+    /// Triangles offered: kept plus dropped.
+    pub triangles_in: u64,
+    pub triangles_out: u64,
+    pub dropped: BTreeMap<DropReason, u64>,
+    pub skipped: BTreeMap<Skipped, u64>,
+    pub warnings: Vec<String>,
+}
+
+impl ImportReport {
+    pub fn dropped_total(&self) -> u64 {
+        self.dropped.values().sum()
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ImportError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("{at}: {message}")]
+    Parse { at: Location, message: String },
+    #[error("{at}: unsupported: {what}")]
+    Unsupported { at: Location, what: String },
+    #[error("{at}: {what} exceeds the limit of {limit}")]
+    Limit {
+        at: Location,
+        what: String,
+        limit: u64,
+    },
+    #[error("{at}: triangle refused under --strict: {}", reason.describe())]
+    Strict { at: Location, reason: DropReason },
+    #[error("the input holds no usable triangle ({dropped} dropped)")]
+    Empty { dropped: u64 },
+}
+
+/// Receives an importer's output.
+pub trait TriangleSink {
+    /// Adds a material; returns the index that triangles give as `material`.
+    fn add_material(&mut self, material: Material) -> Result<u32, ImportError>;
+    /// One triangle. The sink drops (and counts) or refuses degenerate ones.
+    fn push(&mut self, triangle: InputTriangle, at: &Location) -> Result<(), ImportError>;
+    /// A triangle the importer could not even form (an index out of range, say).
+    fn reject(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError>;
+    /// Elements skipped on purpose.
+    fn skip(&mut self, what: Skipped, count: u64);
+    /// Something worth telling the user that does not stop the import (a missing .mtl, say).
+    fn warn(&mut self, at: &Location, message: String);
+    /// Records an input file (for provenance).
+    fn begin_file(&mut self, path: &str);
+}

@@ -1,0 +1,331 @@
+//! An in-memory sink: triangles become a de-duplicated [`Mesh`], degenerate ones are dropped
+//! and counted (or refused under `strict`).
+
+use std::collections::HashMap;
+
+use oocfmt::metadata::Material;
+
+use super::{
+    DropReason, ImportError, ImportReport, InputTriangle, Location, Skipped, TriangleSink,
+};
+use crate::mesh::Mesh;
+
+/// The grey given to triangles without a material when others have one.
+const DEFAULT_MATERIAL: [f32; 3] = [0.8, 0.8, 0.8];
+
+/// A vertex under construction: attributes the input gave, and a fallback normal for inputs
+/// where only some triangles carry normals.
+#[derive(Clone, Copy)]
+struct Vert {
+    position: [f32; 3],
+    normal: Option<[f32; 3]>,
+    fallback_normal: [f32; 3],
+    colour: Option<[u8; 4]>,
+}
+
+#[derive(Default)]
+pub struct MeshSink {
+    strict: bool,
+    verts: Vec<Vert>,
+    index: HashMap<[u32; 8], u32>,
+    triangles: Vec<[u32; 3]>,
+    materials: Vec<Option<u32>>,
+    table: Vec<Material>,
+    report: ImportReport,
+}
+
+impl MeshSink {
+    /// `strict`: refuse the first degenerate or broken triangle instead of dropping it.
+    pub fn new(strict: bool) -> MeshSink {
+        MeshSink {
+            strict,
+            ..MeshSink::default()
+        }
+    }
+
+    pub fn report(&self) -> &ImportReport {
+        &self.report
+    }
+
+    fn drop_or_fail(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError> {
+        self.report.triangles_in += 1;
+        if self.strict {
+            return Err(ImportError::Strict {
+                at: at.clone(),
+                reason,
+            });
+        }
+        *self.report.dropped.entry(reason).or_default() += 1;
+        Ok(())
+    }
+
+    fn vertex(&mut self, v: Vert) -> u32 {
+        let n = v.normal.map_or([u32::MAX; 3], |n| n.map(f32::to_bits));
+        let c = v.colour.map_or(u32::MAX, u32::from_le_bytes);
+        let key = [
+            v.position[0].to_bits(),
+            v.position[1].to_bits(),
+            v.position[2].to_bits(),
+            n[0],
+            n[1],
+            n[2],
+            c,
+            u32::from(v.colour.is_some()),
+        ];
+        let next = self.verts.len() as u32;
+        *self.index.entry(key).or_insert_with(|| {
+            self.verts.push(v);
+            next
+        })
+    }
+
+    /// The mesh and the report. Fails on an empty result or on counts past the format's limits.
+    pub fn finish(self) -> Result<(Mesh, ImportReport), ImportError> {
+        let report = self.report;
+        if self.triangles.is_empty() {
+            return Err(ImportError::Empty {
+                dropped: report.dropped_total(),
+            });
+        }
+        let any_normals = self.verts.iter().any(|v| v.normal.is_some());
+        let any_colours = self.verts.iter().any(|v| v.colour.is_some());
+        let any_materials = self.materials.iter().any(Option::is_some);
+        let mut mesh = Mesh::new(
+            self.verts.iter().map(|v| v.position).collect(),
+            self.triangles,
+        );
+        if any_normals {
+            mesh.normals = Some(
+                self.verts
+                    .iter()
+                    .map(|v| v.normal.unwrap_or(v.fallback_normal))
+                    .collect(),
+            );
+        }
+        if any_colours {
+            mesh.colours = Some(
+                self.verts
+                    .iter()
+                    .map(|v| v.colour.unwrap_or([255; 4]))
+                    .collect(),
+            );
+        }
+        if any_materials {
+            let (materials, table) = compact_materials(&self.materials, self.table)?;
+            mesh.materials = Some(materials);
+            mesh.material_table = table;
+        }
+        Ok((mesh, report))
+    }
+}
+
+/// Keeps the materials that triangles use, in order of first use, plus a default for
+/// triangles without one; indices must fit the format's 16 bits.
+fn compact_materials(
+    used: &[Option<u32>],
+    table: Vec<Material>,
+) -> Result<(Vec<u16>, Vec<Material>), ImportError> {
+    let mut remap: HashMap<Option<u32>, u16> = HashMap::new();
+    let mut out = Vec::new();
+    let mut indices = Vec::with_capacity(used.len());
+    for m in used {
+        let next = out.len();
+        let idx = match remap.get(m) {
+            Some(&i) => i,
+            None => {
+                let i = u16::try_from(next).map_err(|_| ImportError::Limit {
+                    at: Location::default(),
+                    what: "materials used by triangles".into(),
+                    limit: u64::from(u16::MAX) + 1,
+                })?;
+                let material = m
+                    .and_then(|k| table.get(k as usize).cloned())
+                    .unwrap_or_else(|| Material {
+                        name: "default".into(),
+                        diffuse: DEFAULT_MATERIAL,
+                    });
+                out.push(material);
+                remap.insert(*m, i);
+                i
+            }
+        };
+        indices.push(idx);
+    }
+    Ok((indices, out))
+}
+
+fn geometric_normal(p: &[[f32; 3]; 3]) -> [f32; 3] {
+    let d = |a: [f32; 3], b: [f32; 3]| {
+        [
+            f64::from(b[0]) - f64::from(a[0]),
+            f64::from(b[1]) - f64::from(a[1]),
+            f64::from(b[2]) - f64::from(a[2]),
+        ]
+    };
+    let (u, v) = (d(p[0], p[1]), d(p[0], p[2]));
+    let n = [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ];
+    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    if len > 0.0 {
+        [
+            (n[0] / len) as f32,
+            (n[1] / len) as f32,
+            (n[2] / len) as f32,
+        ]
+    } else {
+        [0.0, 0.0, 1.0]
+    }
+}
+
+impl TriangleSink for MeshSink {
+    fn add_material(&mut self, material: Material) -> Result<u32, ImportError> {
+        self.table.push(material);
+        u32::try_from(self.table.len() - 1).map_err(|_| ImportError::Limit {
+            at: Location::default(),
+            what: "materials".into(),
+            limit: u64::from(u32::MAX),
+        })
+    }
+
+    fn push(&mut self, t: InputTriangle, at: &Location) -> Result<(), ImportError> {
+        if let Some(reason) = DropReason::classify(&t.positions) {
+            return self.drop_or_fail(reason, at);
+        }
+        if self.triangles.len() >= u32::MAX as usize {
+            return Err(ImportError::Limit {
+                at: at.clone(),
+                what: "triangles".into(),
+                limit: u64::from(u32::MAX),
+            });
+        }
+        self.report.triangles_in += 1;
+        self.report.triangles_out += 1;
+        let fallback_normal = geometric_normal(&t.positions);
+        let mut tri = [0u32; 3];
+        for (k, slot) in tri.iter_mut().enumerate() {
+            *slot = self.vertex(Vert {
+                position: t.positions[k],
+                normal: t
+                    .normals
+                    .map(|n| n[k])
+                    .filter(|n| n.iter().all(|c| c.is_finite())),
+                fallback_normal,
+                colour: t.colours.map(|c| c[k]),
+            });
+        }
+        self.triangles.push(tri);
+        self.materials.push(t.material);
+        Ok(())
+    }
+
+    fn reject(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError> {
+        self.drop_or_fail(reason, at)
+    }
+
+    fn skip(&mut self, what: Skipped, count: u64) {
+        *self.report.skipped.entry(what).or_default() += count;
+    }
+
+    fn warn(&mut self, at: &Location, message: String) {
+        self.report.warnings.push(format!("{at}: {message}"));
+    }
+
+    fn begin_file(&mut self, path: &str) {
+        self.report.files.push(path.to_string());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri(p: [[f32; 3]; 3]) -> InputTriangle {
+        InputTriangle::new(p)
+    }
+
+    #[test]
+    fn degenerate_triangles_are_dropped_and_counted() -> Result<(), ImportError> {
+        let at = Location::line("t.obj", 1);
+        let mut s = MeshSink::new(false);
+        s.push(
+            tri([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+            &at,
+        )?;
+        s.push(
+            tri([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+            &at,
+        )?;
+        s.push(
+            tri([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0]]),
+            &at,
+        )?;
+        s.push(
+            tri([[f32::NAN, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+            &at,
+        )?;
+        s.reject(DropReason::IndexOutOfRange, &at)?;
+        let (mesh, r) = s.finish()?;
+        assert_eq!(mesh.triangles.len(), 1);
+        assert_eq!(mesh.positions.len(), 3);
+        assert_eq!(
+            (r.triangles_in, r.triangles_out, r.dropped_total()),
+            (5, 1, 4)
+        );
+        for reason in [
+            DropReason::ZeroArea,
+            DropReason::Collinear,
+            DropReason::NonFinite,
+            DropReason::IndexOutOfRange,
+        ] {
+            assert_eq!(r.dropped.get(&reason), Some(&1), "{reason:?}");
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn strict_refuses_with_the_place() {
+        let mut s = MeshSink::new(true);
+        let e = s.push(
+            tri([[0.0; 3], [0.0; 3], [1.0; 3]]),
+            &Location::line("m.obj", 42),
+        );
+        let msg = e.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(
+            msg.contains("m.obj:42") && msg.contains("zero area"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn an_empty_result_is_an_error() {
+        let s = MeshSink::new(false);
+        assert!(matches!(s.finish(), Err(ImportError::Empty { .. })));
+    }
+
+    #[test]
+    fn attributes_exist_only_when_given_and_vertices_are_shared() -> Result<(), ImportError> {
+        let at = Location::default();
+        let mut s = MeshSink::new(false);
+        let m = s.add_material(Material {
+            name: "red".into(),
+            diffuse: [1.0, 0.0, 0.0],
+        })?;
+        let mut a = tri([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        a.material = Some(m);
+        s.push(a, &at)?;
+        s.push(
+            tri([[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]),
+            &at,
+        )?;
+        let (mesh, _) = s.finish()?;
+        assert_eq!(mesh.positions.len(), 4);
+        assert!(mesh.normals.is_none() && mesh.colours.is_none());
+        assert_eq!(mesh.materials, Some(vec![0, 1]));
+        assert_eq!(mesh.material_table.len(), 2);
+        assert_eq!(mesh.material_table[1].name, "default");
+        Ok(())
+    }
+}
