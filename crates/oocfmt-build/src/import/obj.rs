@@ -1,0 +1,450 @@
+//! The Wavefront OBJ importer.
+//!
+//! It streams: the file is read line by line and each face goes to the sink as it is read, so
+//! only the vertex attributes (positions, normals, colours) stay in memory, never the faces.
+//! That is why it is not built on tobj, which holds whole files, fans concave polygons,
+//! cannot count lines and points, and panics on some malformed material libraries; tobj
+//! remains the reference our tests compare against.
+//!
+//! Faces may only use vertices defined above them (what every exporter writes; tobj also
+//! accepts later ones). An index that does not resolve, zero included, makes the face's
+//! triangles rejected as [`DropReason::IndexOutOfRange`], not the file. Texture coordinates
+//! are ignored, and so is the `w` of `v x y z w`, which only weighs rational curves.
+
+mod lines;
+mod materials;
+mod mtl;
+mod notes;
+mod polygon;
+
+use std::fs::File;
+use std::io::BufReader;
+use std::num::IntErrorKind;
+use std::path::{Path, PathBuf};
+use std::str::SplitWhitespace;
+
+use lines::{LineError, LineFailure, Lines};
+use materials::Materials;
+use notes::{Kind, Notes};
+use polygon::{Outcome, Triangulator};
+
+use super::{DropReason, ImportError, InputTriangle, Location, Skipped, TriangleSink};
+
+/// Bounds on what one file can make the importer hold or do.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ObjOptions {
+    /// Longest logical line, in bytes (continuations joined, line ending not counted).
+    pub max_line_bytes: usize,
+    /// Most vertex positions (`v`) held; the same bound applies to normals (`vn`).
+    pub max_vertices: usize,
+    /// Most corners of one face.
+    pub max_face_corners: usize,
+    /// Largest material library read, in bytes.
+    pub max_mtl_bytes: u64,
+}
+
+impl Default for ObjOptions {
+    fn default() -> ObjOptions {
+        ObjOptions {
+            max_line_bytes: 1 << 20,
+            // 3 GiB of positions: beyond any model that reasonably comes as one OBJ file.
+            max_vertices: 1 << 28,
+            max_face_corners: 1 << 16,
+            max_mtl_bytes: 64 << 20,
+        }
+    }
+}
+
+/// Reads the OBJ file at `path` (and the material libraries it names) into `sink`.
+pub fn import(
+    path: &Path,
+    sink: &mut dyn TriangleSink,
+    opts: &ObjOptions,
+) -> Result<(), ImportError> {
+    let name = path.display().to_string();
+    sink.begin_file(&name);
+    let file = File::open(path).map_err(|source| ImportError::Io {
+        path: name.clone(),
+        source,
+    })?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let mut lines = Lines::new(BufReader::with_capacity(1 << 16, file), opts.max_line_bytes);
+    let mut obj = Obj::new(name, dir, opts);
+    while let Some((n, text)) = lines.next_line().map_err(|f| obj.line_error(f))? {
+        obj.statement(n, text, sink)?;
+    }
+    obj.finish(sink);
+    Ok(())
+}
+
+/// One corner of a face: its vertex, and its normal if it names one.
+#[derive(Clone, Copy)]
+struct Corner {
+    vertex: usize,
+    normal: Option<usize>,
+}
+
+struct Obj<'o> {
+    opts: &'o ObjOptions,
+    /// The place of the statement being read; faces report with it.
+    at: Location,
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    /// Per vertex; empty until the first coloured vertex, so colourless files pay nothing.
+    colours: Vec<Option<[u8; 4]>>,
+    corners: Vec<Corner>,
+    polygon: Vec<[f32; 3]>,
+    triangulator: Triangulator,
+    materials: Materials,
+    notes: Notes,
+    lines: u64,
+    points: u64,
+}
+
+impl<'o> Obj<'o> {
+    fn new(file: String, dir: PathBuf, opts: &'o ObjOptions) -> Obj<'o> {
+        Obj {
+            opts,
+            at: Location::file(file),
+            positions: Vec::new(),
+            normals: Vec::new(),
+            colours: Vec::new(),
+            corners: Vec::new(),
+            polygon: Vec::new(),
+            triangulator: Triangulator::default(),
+            materials: Materials::new(dir),
+            notes: Notes::default(),
+            lines: 0,
+            points: 0,
+        }
+    }
+
+    fn parse_error(&self, message: String) -> ImportError {
+        ImportError::Parse {
+            at: self.at.clone(),
+            message,
+        }
+    }
+
+    fn line_error(&self, f: LineFailure) -> ImportError {
+        match f.error {
+            LineError::Io(source) => ImportError::Io {
+                path: format!("{}:{}", self.at.file, f.line),
+                source,
+            },
+            LineError::TooLong => ImportError::Limit {
+                at: Location::line(self.at.file.clone(), f.line),
+                what: "line length in bytes".into(),
+                limit: self.opts.max_line_bytes as u64,
+            },
+        }
+    }
+
+    fn statement(
+        &mut self,
+        n: u64,
+        text: &str,
+        sink: &mut dyn TriangleSink,
+    ) -> Result<(), ImportError> {
+        self.at.line = Some(n);
+        let mut words = text.split_whitespace();
+        let Some(keyword) = words.next() else {
+            return Ok(());
+        };
+        match keyword {
+            "v" => self.vertex(words, sink),
+            "vn" => self.normal(words),
+            // `fo` is the face statement of old versions of the format.
+            "f" | "fo" => self.face(words, sink),
+            "l" => {
+                self.lines += (words.count() as u64).saturating_sub(1);
+                Ok(())
+            }
+            "p" => {
+                self.points += words.count() as u64;
+                Ok(())
+            }
+            "usemtl" => {
+                self.materials.select(mtl::rest_after(text, keyword), n);
+                Ok(())
+            }
+            "mtllib" => {
+                let args = mtl::rest_after(text, keyword);
+                self.materials
+                    .load(args, &self.at, self.opts, sink, &mut self.notes);
+                Ok(())
+            }
+            // Texture coordinates, names, smoothing and display attributes do not reach the
+            // container; `vp` and the free-form settings only matter to the free-form
+            // statements, which are warned about.
+            "vt" | "vp" | "g" | "o" | "s" | "mg" | "bevel" | "c_interp" | "d_interp" | "lod"
+            | "usemap" | "maplib" | "shadow_obj" | "trace_obj" | "ctech" | "stech" | "cstype"
+            | "deg" | "bmat" | "step" => Ok(()),
+            other => {
+                self.notes.unsupported(other, n);
+                Ok(())
+            }
+        }
+    }
+
+    fn number(&self, word: &str, what: &str) -> Result<f32, ImportError> {
+        // Rust's parser also takes `nan` and `inf`: such vertices are the sink's to drop.
+        word.parse::<f32>()
+            .map_err(|_| self.parse_error(format!("`{word}` is not a number (in `{what}`)")))
+    }
+
+    fn vertex(
+        &mut self,
+        words: SplitWhitespace<'_>,
+        sink: &mut dyn TriangleSink,
+    ) -> Result<(), ImportError> {
+        let mut vals = [0.0f32; 6];
+        let mut count = 0;
+        for w in words {
+            let slot = vals.get_mut(count).ok_or_else(|| {
+                self.parse_error("`v` has more than 6 numbers (x y z [w] or x y z r g b)".into())
+            })?;
+            *slot = self.number(w, "v")?;
+            count += 1;
+        }
+        let colour = match count {
+            3 | 4 => None,
+            6 => Some([vals[3], vals[4], vals[5]]),
+            k => {
+                return Err(self.parse_error(format!(
+                    "`v` has {k} numbers, expected x y z [w] or x y z r g b"
+                )))
+            }
+        };
+        if self.positions.len() >= self.opts.max_vertices {
+            return Err(self.limit("vertex positions (`v`)", self.opts.max_vertices));
+        }
+        self.positions.push([vals[0], vals[1], vals[2]]);
+        match colour {
+            Some(rgb) => {
+                if !rgb.iter().all(|c| (0.0..=1.0).contains(c)) {
+                    self.notes.warn(sink, Kind::Colour, &self.at, || {
+                        format!("vertex colour {rgb:?} is outside 0..1 and is clamped")
+                    });
+                }
+                // NaN clamps to NaN, which converts to 0.
+                let c = rgb.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+                if self.colours.is_empty() {
+                    self.colours.resize(self.positions.len() - 1, None);
+                }
+                self.colours.push(Some([c[0], c[1], c[2], 255]));
+            }
+            None if !self.colours.is_empty() => self.colours.push(None),
+            None => {}
+        }
+        Ok(())
+    }
+
+    fn normal(&mut self, words: SplitWhitespace<'_>) -> Result<(), ImportError> {
+        let mut vals = [0.0f32; 3];
+        let mut count = 0;
+        for w in words {
+            let slot = vals
+                .get_mut(count)
+                .ok_or_else(|| self.parse_error("`vn` has more than 3 numbers".into()))?;
+            *slot = self.number(w, "vn")?;
+            count += 1;
+        }
+        if count != 3 {
+            return Err(self.parse_error(format!("`vn` has {count} numbers, expected 3")));
+        }
+        if self.normals.len() >= self.opts.max_vertices {
+            return Err(self.limit("vertex normals (`vn`)", self.opts.max_vertices));
+        }
+        self.normals.push(vals);
+        Ok(())
+    }
+
+    fn limit(&self, what: &str, limit: usize) -> ImportError {
+        ImportError::Limit {
+            at: self.at.clone(),
+            what: what.into(),
+            limit: limit as u64,
+        }
+    }
+
+    fn face(
+        &mut self,
+        words: SplitWhitespace<'_>,
+        sink: &mut dyn TriangleSink,
+    ) -> Result<(), ImportError> {
+        self.corners.clear();
+        self.polygon.clear();
+        let mut unresolved = false;
+        for w in words {
+            if self.corners.len() >= self.opts.max_face_corners {
+                return Err(self.limit("corners of one face", self.opts.max_face_corners));
+            }
+            let (v, vn) = parse_corner(w).ok_or_else(|| {
+                self.parse_error(format!(
+                    "bad face corner `{w}`: expected v, v/vt, v//vn or v/vt/vn with whole-number \
+                     indices"
+                ))
+            })?;
+            let vertex = resolve(v, self.positions.len())
+                .and_then(|i| self.positions.get(i).map(|&p| (i, p)));
+            let normal = vn.map(|i| resolve(i, self.normals.len()));
+            match (vertex, normal) {
+                (Some((i, p)), None | Some(Some(_))) => {
+                    self.polygon.push(p);
+                    self.corners.push(Corner {
+                        vertex: i,
+                        normal: normal.flatten(),
+                    });
+                }
+                _ => {
+                    unresolved = true;
+                    self.corners.push(Corner {
+                        vertex: 0,
+                        normal: None,
+                    });
+                }
+            }
+        }
+        match self.corners.len() {
+            0 => return Err(self.parse_error("face without corners".into())),
+            // tobj reads these as a point and a line; so do we, and count them with the rest.
+            1 => self.points += 1,
+            2 => self.lines += 1,
+            n if unresolved => {
+                for _ in 2..n {
+                    sink.reject(DropReason::IndexOutOfRange, &self.at)?;
+                }
+            }
+            _ => self.emit(sink)?,
+        }
+        Ok(())
+    }
+
+    /// Triangulates the face in `corners`/`polygon` and pushes its triangles.
+    fn emit(&mut self, sink: &mut dyn TriangleSink) -> Result<(), ImportError> {
+        if self.triangulator.triangulate(&self.polygon) == Outcome::Fallback {
+            let corners = self.polygon.len();
+            self.notes.warn(sink, Kind::Fallback, &self.at, || {
+                format!(
+                    "polygon of {corners} corners could not be ear-clipped (self-intersecting?) \
+                     and was fan-triangulated"
+                )
+            });
+        }
+        let material = self
+            .materials
+            .current(sink, &mut self.notes, &self.at.file)?;
+        for t in self.triangulator.triangles() {
+            let corners = t.map(|i| self.corners[i]);
+            let normals = match corners.map(|c| c.normal.and_then(|n| self.normals.get(n))) {
+                [Some(a), Some(b), Some(c)] => Some([*a, *b, *c]),
+                _ => None,
+            };
+            let colours = corners.map(|c| self.colours.get(c.vertex).copied().flatten());
+            let colours = colours
+                .iter()
+                .any(Option::is_some)
+                .then(|| colours.map(|c| c.unwrap_or([255; 4])));
+            let triangle = InputTriangle {
+                positions: t.map(|i| self.polygon[i]),
+                normals,
+                colours,
+                material,
+            };
+            sink.push(triangle, &self.at)?;
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, sink: &mut dyn TriangleSink) {
+        if self.lines > 0 {
+            sink.skip(Skipped::Lines, self.lines);
+        }
+        if self.points > 0 {
+            sink.skip(Skipped::Points, self.points);
+        }
+        self.notes.finish(sink, &self.at.file);
+    }
+}
+
+/// `v`, `v/vt`, `v//vn` or `v/vt/vn` → the raw vertex and normal indices. Texture indices are
+/// checked for form only.
+fn parse_corner(word: &str) -> Option<(i64, Option<i64>)> {
+    let mut parts = word.split('/');
+    let v = index(parts.next()?)?;
+    let vt = parts.next();
+    let vn = parts.next();
+    if parts.next().is_some() {
+        return None;
+    }
+    match vt {
+        Some(t) if !t.is_empty() => {
+            index(t)?;
+        }
+        _ => {}
+    }
+    let vn = match vn {
+        Some(n) if !n.is_empty() => Some(index(n)?),
+        _ => None,
+    };
+    Some((v, vn))
+}
+
+/// A whole number; one too large for i64 is still an index (just out of range).
+fn index(word: &str) -> Option<i64> {
+    match word.parse::<i64>() {
+        Ok(i) => Some(i),
+        Err(e) => match e.kind() {
+            IntErrorKind::PosOverflow => Some(i64::MAX),
+            IntErrorKind::NegOverflow => Some(i64::MIN),
+            _ => None,
+        },
+    }
+}
+
+/// A 1-based (or, negative, counted back from the latest) OBJ index → a 0-based one, if it
+/// names one of the `count` elements defined so far.
+fn resolve(raw: i64, count: usize) -> Option<usize> {
+    let count = count as u64;
+    let i = if raw > 0 {
+        raw.unsigned_abs() - 1
+    } else {
+        count.checked_sub(raw.unsigned_abs())?
+    };
+    // Zero falls out here too: count − 0 is never below count.
+    (i < count).then_some(i as usize)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn corners_in_every_form() {
+        assert_eq!(parse_corner("3"), Some((3, None)));
+        assert_eq!(parse_corner("3/7"), Some((3, None)));
+        assert_eq!(parse_corner("3//-2"), Some((3, Some(-2))));
+        assert_eq!(parse_corner("-1/7/2"), Some((-1, Some(2))));
+        assert_eq!(parse_corner("3/"), Some((3, None)));
+        assert_eq!(parse_corner("99999999999999999999"), Some((i64::MAX, None)));
+        for bad in ["", "/1", "a", "1/x", "1//y", "1/2/3/4", "1.5", "1 2"] {
+            assert_eq!(parse_corner(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn indices_resolve_forwards_and_backwards() {
+        assert_eq!(resolve(1, 3), Some(0));
+        assert_eq!(resolve(3, 3), Some(2));
+        assert_eq!(resolve(4, 3), None);
+        assert_eq!(resolve(-1, 3), Some(2));
+        assert_eq!(resolve(-3, 3), Some(0));
+        assert_eq!(resolve(-4, 3), None);
+        assert_eq!(resolve(0, 3), None);
+        assert_eq!(resolve(i64::MIN, 3), None);
+    }
+}
