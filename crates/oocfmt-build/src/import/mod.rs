@@ -2,6 +2,7 @@
 //! bad-input policy (drop and count, or fail under `--strict`), so every importer applies the
 //! same rules and the report adds up: triangles out = triangles in − triangles dropped.
 
+pub mod gltf;
 mod sink;
 
 use std::collections::BTreeMap;
