@@ -3,6 +3,7 @@
 //! same rules and the report adds up: triangles out = triangles in − triangles dropped.
 
 pub mod obj;
+pub mod gltf;
 mod sink;
 
 use std::collections::BTreeMap;

@@ -1,0 +1,169 @@
+//! The conversion pipeline behind `oocfmt convert`: import every input into one scene, build the
+//! kd-tree, compute LOD data and lay it out, write the container, then re-open it to report what
+//! was written. Each phase is timed and reported.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use oocfmt::{BlockKind, ReadOptions, Reader};
+
+use crate::import::{self, ImportError, MeshSink, TriangleSink};
+use crate::kdtree::{self, KdBuildOptions, KdError};
+use crate::layout::{build_blocks, write_blocks, LayoutError, LayoutOptions};
+use crate::progress::Progress;
+use crate::report::{peak_memory, BlockStats, ConvertReport, PhaseTime};
+
+/// Bytes of memory the in-core build needs per input triangle, measured with `demo_scene`
+/// meshes (peak RSS over triangles, release build); used to refuse inputs over `--mem-limit`
+/// before the build runs out of memory.
+pub const BYTES_PER_TRIANGLE_IN_CORE: u64 = 400;
+
+#[derive(Clone, Debug)]
+pub struct ConvertOptions {
+    pub layout: LayoutOptions,
+    pub kd: KdBuildOptions,
+    /// Refuse the first bad triangle instead of dropping and counting it.
+    pub strict: bool,
+    pub mem_limit: u64,
+    pub obj: import::obj::ObjOptions,
+    pub gltf: import::gltf::GltfOptions,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConvertError {
+    #[error(transparent)]
+    Import(#[from] ImportError),
+    #[error(transparent)]
+    Tree(#[from] KdError),
+    #[error(transparent)]
+    Layout(#[from] LayoutError),
+    #[error(transparent)]
+    Format(#[from] oocfmt::Error),
+    #[error("{0}: unknown input format (expected .obj, .gltf or .glb)")]
+    UnknownFormat(String),
+    #[error("{triangles} triangles need about {needed} bytes to build in memory, over --mem-limit {limit} (the out-of-core build is not available yet; raise the limit or split the input)")]
+    MemoryLimit { triangles: u64, needed: u64, limit: u64 },
+}
+
+/// Input formats, by file extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputFormat {
+    Obj,
+    Gltf,
+}
+
+impl InputFormat {
+    pub fn of(path: &Path) -> Option<InputFormat> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "obj" => Some(InputFormat::Obj),
+            "gltf" | "glb" => Some(InputFormat::Gltf),
+            _ => None,
+        }
+    }
+}
+
+struct Phases {
+    list: Vec<PhaseTime>,
+    at: Instant,
+}
+
+impl Phases {
+    fn done(&mut self, phase: &str) {
+        let now = Instant::now();
+        self.list.push(PhaseTime { phase: phase.to_string(), seconds: (now - self.at).as_secs_f64() });
+        self.at = now;
+    }
+}
+
+/// Imports `inputs` into one scene and writes the container `output`. A failure leaves no file
+/// under `output` and never touches an existing one (the writer renames a finished file into
+/// place).
+pub fn convert(inputs: &[PathBuf], output: &Path, opts: &ConvertOptions, progress: &mut dyn Progress) -> Result<ConvertReport, ConvertError> {
+    let start = Instant::now();
+    let mut phases = Phases { list: Vec::new(), at: start };
+    let mut sink = MeshSink::new(opts.strict);
+    progress.phase("import", Some(inputs.len() as u64));
+    for (i, path) in inputs.iter().enumerate() {
+        import_one(path, &mut sink, opts)?;
+        progress.advance(i as u64 + 1);
+    }
+    progress.finish_phase();
+    let (mesh, import_report) = sink.finish()?;
+    phases.done("import");
+    let triangles = mesh.triangles.len() as u64;
+    let needed = triangles.saturating_mul(BYTES_PER_TRIANGLE_IN_CORE);
+    if needed > opts.mem_limit {
+        return Err(ConvertError::MemoryLimit { triangles, needed, limit: opts.mem_limit });
+    }
+
+    progress.phase("kd-tree", None);
+    let tree = kdtree::build(&mesh, &opts.kd)?;
+    progress.finish_phase();
+    phases.done("kd-tree");
+
+    progress.phase("LOD + layout", None);
+    let mut layout = opts.layout.clone();
+    layout.sources = inputs.iter().map(|p| p.display().to_string()).collect();
+    let container = build_blocks(&mesh, &tree, &layout)?;
+    progress.finish_phase();
+    phases.done("lod+layout");
+    drop(tree);
+    drop(mesh);
+
+    progress.phase("write", Some(container.blocks.len() as u64));
+    let written = write_blocks(output, &container, layout.write, &mut |n| progress.advance(n))?;
+    progress.finish_phase();
+    phases.done("write");
+    drop(container);
+
+    let mut report = describe(output, written.identity)?;
+    report.import = import_report;
+    report.phases = phases.list;
+    report.seconds = start.elapsed().as_secs_f64();
+    report.triangles_per_second = report.import.triangles_in as f64 / report.seconds.max(1e-9);
+    report.peak_memory_bytes = peak_memory();
+    report.mem_limit_bytes = opts.mem_limit;
+    Ok(report)
+}
+
+fn import_one(path: &Path, sink: &mut dyn TriangleSink, opts: &ConvertOptions) -> Result<(), ConvertError> {
+    match InputFormat::of(path) {
+        Some(InputFormat::Obj) => import::obj::import(path, sink, &opts.obj)?,
+        Some(InputFormat::Gltf) => import::gltf::import(path, sink, &opts.gltf)?,
+        None => return Err(ConvertError::UnknownFormat(path.display().to_string())),
+    }
+    Ok(())
+}
+
+/// The report's figures about the written file, read back from it.
+fn describe(output: &Path, identity: u32) -> Result<ConvertReport, ConvertError> {
+    let reader = Reader::open(output, ReadOptions::default())?;
+    let m = reader.metadata();
+    let mut report = ConvertReport {
+        output: output.display().to_string(),
+        triangles_stored: m.counts.triangles,
+        basic_nodes: m.counts.basic_nodes,
+        lod_nodes: m.counts.lod_nodes,
+        leaves: m.counts.leaves,
+        depth: m.counts.depth,
+        voxels_single: m.counts.voxels_single,
+        voxels_six: m.counts.voxels_six,
+        proxies: m.counts.proxies,
+        file_bytes: reader.file_len(),
+        identity: format!("{identity:08x}"),
+        ..ConvertReport::default()
+    };
+    for e in reader.entries() {
+        let kind = match e.kind {
+            BlockKind::Treelet => "treelet",
+            BlockKind::Triangle => "triangle",
+            BlockKind::Proxy => "proxy",
+        };
+        let s: &mut BlockStats = report.blocks.entry(kind.to_string()).or_default();
+        s.blocks += 1;
+        s.raw_bytes += u64::from(e.raw_length);
+        s.stored_bytes += u64::from(e.stored_length);
+    }
+    Ok(report)
+}

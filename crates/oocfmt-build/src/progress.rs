@@ -1,0 +1,18 @@
+//! Progress reporting for long phases, without tying the library to a terminal: the CLI shows
+//! bars, tests and benches pass [`NoProgress`].
+
+/// Receives phase starts and advances. `total` is in the phase's own unit (bytes, triangles).
+pub trait Progress {
+    fn phase(&mut self, name: &str, total: Option<u64>);
+    fn advance(&mut self, done: u64);
+    fn finish_phase(&mut self);
+}
+
+/// Ignores everything.
+pub struct NoProgress;
+
+impl Progress for NoProgress {
+    fn phase(&mut self, _name: &str, _total: Option<u64>) {}
+    fn advance(&mut self, _done: u64) {}
+    fn finish_phase(&mut self) {}
+}

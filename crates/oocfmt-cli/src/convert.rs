@@ -1,0 +1,143 @@
+//! `oocfmt convert`: OBJ and glTF files into one container.
+
+use std::path::PathBuf;
+
+use oocfmt::{Codec, WriteOptions};
+use oocfmt_build::convert::{convert, ConvertError, ConvertOptions};
+use oocfmt_build::import::gltf::GltfOptions;
+use oocfmt_build::import::obj::ObjOptions;
+use oocfmt_build::kdtree::KdBuildOptions;
+use oocfmt_build::layout::LayoutOptions;
+use oocfmt_build::report::{total_memory, ConvertReport};
+
+use crate::error::{to_json, CliError, CliResult};
+use crate::progress::Phases;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Input files (.obj, .gltf, .glb); several become one scene
+    #[arg(required = true)]
+    pub inputs: Vec<PathBuf>,
+    /// The container to write
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Block codec: none, lz4, zstd or zstd:LEVEL (none is what a memory-mapped reader wants)
+    #[arg(long, default_value = "lz4", value_parser = crate::demo::parse_codec)]
+    pub codec: Codec,
+    /// Block size in bytes: a power of two from 4096 to 1048576
+    #[arg(long, default_value_t = 65536)]
+    pub block_size: u64,
+    /// Most triangles per kd-tree leaf (1..=4095)
+    #[arg(long, default_value_t = 8)]
+    pub max_leaf: u32,
+    /// Node levels per treelet; every this-many levels holds the LOD voxels
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=8))]
+    pub treelet_height: u8,
+    /// Refuse the first bad triangle (NaN, out-of-range index, zero area) instead of dropping it
+    #[arg(long)]
+    pub strict: bool,
+    /// Memory the build may use, e.g. 2G, 512M (default: half the physical memory)
+    #[arg(long, value_parser = parse_size)]
+    pub mem_limit: Option<u64>,
+    /// glTF: import every scene, not only the default one
+    #[arg(long)]
+    pub all_scenes: bool,
+    /// Also write the report as JSON to this file
+    #[arg(long)]
+    pub report_json: Option<PathBuf>,
+    /// Worker threads (default: all cores)
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// No progress bars
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Parses sizes such as `512M`, `2G`, `1.5G` or a plain byte count.
+pub fn parse_size(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let (num, mult) = match t.chars().last().map(|c| c.to_ascii_uppercase()) {
+        Some('K') => (&t[..t.len() - 1], 1u64 << 10),
+        Some('M') => (&t[..t.len() - 1], 1 << 20),
+        Some('G') => (&t[..t.len() - 1], 1 << 30),
+        Some('T') => (&t[..t.len() - 1], 1 << 40),
+        _ => (t, 1),
+    };
+    let v: f64 = num.trim().parse().map_err(|_| format!("`{s}`: expected a size like 512M or 2G"))?;
+    if !(v.is_finite() && v > 0.0) {
+        return Err(format!("`{s}`: the size must be positive"));
+    }
+    Ok((v * mult as f64) as u64)
+}
+
+pub fn run(a: &Args) -> CliResult {
+    if let Some(n) = a.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .map_err(|e| CliError::Usage(format!("--threads {n}: {e}")))?;
+    }
+    let write = WriteOptions { codec: a.codec, ..WriteOptions::default() }.with_block_size(a.block_size)?;
+    let opts = ConvertOptions {
+        layout: LayoutOptions { write, treelet_height: a.treelet_height, ..LayoutOptions::default() },
+        kd: KdBuildOptions { max_leaf_triangles: a.max_leaf, ..KdBuildOptions::default() },
+        strict: a.strict,
+        mem_limit: a.mem_limit.unwrap_or_else(|| total_memory().map_or(4 << 30, |m| m / 2)),
+        obj: ObjOptions::default(),
+        gltf: GltfOptions { all_scenes: a.all_scenes, ..GltfOptions::default() },
+    };
+    let mut progress = Phases::new(a.quiet);
+    let report = convert(&a.inputs, &a.output, &opts, &mut progress).map_err(|e| match e {
+        ConvertError::Import(oocfmt_build::import::ImportError::Io { path, source }) => CliError::Io { path, source },
+        ConvertError::UnknownFormat(path) => CliError::Usage(format!("{path}: unknown input format (expected .obj, .gltf or .glb)")),
+        other => CliError::Build(other.to_string()),
+    })?;
+    if let Some(path) = &a.report_json {
+        std::fs::write(path, to_json(&report)?).map_err(|e| CliError::Io { path: path.display().to_string(), source: e })?;
+    }
+    print!("{}", render(&report));
+    Ok(0)
+}
+
+fn render(r: &ConvertReport) -> String {
+    use std::fmt::Write;
+    let mut o = String::new();
+    let i = &r.import;
+    let _ = writeln!(o, "wrote      {} ({} bytes, identity {})", r.output, r.file_bytes, r.identity);
+    let _ = writeln!(o, "inputs     {}", i.files.join(", "));
+    let _ = writeln!(o, "triangles  {} in, {} out, {} dropped", i.triangles_in, i.triangles_out, i.dropped_total());
+    for (reason, n) in &i.dropped {
+        let _ = writeln!(o, "           dropped {n}: {}", reason.describe());
+    }
+    for (what, n) in &i.skipped {
+        let _ = writeln!(o, "           skipped {n} {what:?}");
+    }
+    for w in &i.warnings {
+        let _ = writeln!(o, "warning    {w}");
+    }
+    let _ = writeln!(o, "tree       {} basic + {} LOD nodes, {} leaves, depth {}", r.basic_nodes, r.lod_nodes, r.leaves, r.depth);
+    let _ = writeln!(o, "LOD        {} one-sample + {} six-sample voxels, {} proxies", r.voxels_single, r.voxels_six, r.proxies);
+    for (kind, b) in &r.blocks {
+        let _ = writeln!(o, "blocks     {kind:<9} {:>7} blocks, {:>12} raw, {:>12} stored bytes", b.blocks, b.raw_bytes, b.stored_bytes);
+    }
+    let phases: Vec<String> = r.phases.iter().map(|p| format!("{} {:.2} s", p.phase, p.seconds)).collect();
+    let _ = writeln!(o, "time       {:.2} s ({}): {:.0} triangles/s", r.seconds, phases.join(", "), r.triangles_per_second);
+    if let Some(peak) = r.peak_memory_bytes {
+        let _ = writeln!(o, "memory     peak {:.1} MiB (limit {:.1} MiB)", peak as f64 / 1048576.0, r.mem_limit_bytes as f64 / 1048576.0);
+    }
+    o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_size;
+
+    #[test]
+    fn sizes_parse() {
+        assert_eq!(parse_size("2G"), Ok(2 << 30));
+        assert_eq!(parse_size("512m"), Ok(512 << 20));
+        assert_eq!(parse_size("1000"), Ok(1000));
+        assert!(parse_size("-1G").is_err());
+        assert!(parse_size("lots").is_err());
+    }
+}
