@@ -207,3 +207,249 @@ fn the_demo_builds_inspects_and_verifies() {
     assert!(out.contains("valid"), "{out}");
     assert!(tmp.path().join("demo-out/demo.oocf").is_file());
 }
+
+/// A small OBJ scene: a floor quad and a concave L-shaped panel with a material library,
+/// vertex colours on the panel, a degenerate face, a NaN vertex, a line and a point.
+const SCENE_OBJ: &str = "mtllib scene.mtl
+o floor
+v 0 0 0
+v 4 0 0
+v 4 4 0
+v 0 4 0
+usemtl grey
+f 1 2 3 4
+o panel
+v 0 0 1 1 0 0
+v 2 0 1 1 0 0
+v 2 1 1 1 0 0
+v 1 1 1 1 0 0
+v 1 2 1 1 0 0
+v 0 2 1 1 0 0
+usemtl red
+f -6 -5 -4 -3 -2 -1
+f 5 5 6
+v nan 0 0
+f 11 1 2
+l 1 2 3
+p 4
+";
+
+const SCENE_MTL: &str = "newmtl grey\nKd 0.5 0.5 0.5\nnewmtl red\nKd 0.9 0.1 0.1\n";
+
+fn scene_dir() -> tempfile::TempDir {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(tmp.path().join("scene.obj"), SCENE_OBJ).unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(tmp.path().join("scene.mtl"), SCENE_MTL).unwrap_or_else(|e| panic!("{e}"));
+    tmp
+}
+
+#[test]
+fn convert_obj_reports_drops_verifies_and_round_trips_through_export() {
+    let tmp = scene_dir();
+    let o = oocfmt(
+        &[
+            "convert",
+            "scene.obj",
+            "-o",
+            "scene.oocf",
+            "--quiet",
+            "--report-json",
+            "report.json",
+        ],
+        tmp.path(),
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}{}",
+        stdout(&o),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(tmp.path().join("report.json")).unwrap_or_default())
+            .unwrap_or_default();
+    // 2 floor + 4 panel triangles kept; one zero-area and one NaN triangle dropped.
+    assert_eq!(report["import"]["triangles_in"], 8, "{report}");
+    assert_eq!(report["import"]["triangles_out"], 6, "{report}");
+    assert_eq!(report["import"]["dropped"]["zero_area"], 1, "{report}");
+    assert_eq!(report["import"]["dropped"]["non_finite"], 1, "{report}");
+    assert_eq!(report["import"]["skipped"]["lines"], 2, "{report}");
+    assert_eq!(report["import"]["skipped"]["points"], 1, "{report}");
+    assert_eq!(report["triangles_stored"], 6, "{report}");
+    let v = oocfmt(&["verify", "--deep", "scene.oocf"], tmp.path());
+    assert_eq!(v.status.code(), Some(0), "{}", stdout(&v));
+    let e = oocfmt(&["export", "scene.oocf", "-o", "back.obj"], tmp.path());
+    assert_eq!(
+        e.status.code(),
+        Some(0),
+        "{}{}",
+        stdout(&e),
+        String::from_utf8_lossy(&e.stderr)
+    );
+    let back = std::fs::read_to_string(tmp.path().join("back.obj")).unwrap_or_default();
+    assert_eq!(
+        back.lines().filter(|l| l.starts_with("f ")).count(),
+        6,
+        "{back}"
+    );
+}
+
+#[test]
+fn strict_convert_fails_with_the_line_and_leaves_an_existing_output_alone() {
+    let tmp = scene_dir();
+    std::fs::write(tmp.path().join("scene.oocf"), b"precious").unwrap_or_else(|e| panic!("{e}"));
+    let o = oocfmt(
+        &[
+            "convert",
+            "scene.obj",
+            "-o",
+            "scene.oocf",
+            "--strict",
+            "--quiet",
+        ],
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("scene.obj:18"), "{err}");
+    assert_eq!(
+        std::fs::read(tmp.path().join("scene.oocf")).unwrap_or_default(),
+        b"precious"
+    );
+    let leftovers: Vec<String> = std::fs::read_dir(tmp.path())
+        .map(|d| {
+            d.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.ends_with(".partial"))
+                .collect()
+        })
+        .unwrap_or_default();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+#[test]
+fn convert_refuses_empty_missing_and_unknown_inputs() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(tmp.path().join("empty.obj"), "# nothing\nv 0 0 0\n")
+        .unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(tmp.path().join("model.stl"), "solid x\n").unwrap_or_else(|e| panic!("{e}"));
+    let empty = oocfmt(
+        &["convert", "empty.obj", "-o", "x.oocf", "--quiet"],
+        tmp.path(),
+    );
+    assert_eq!(
+        empty.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&empty.stderr)
+    );
+    assert_eq!(
+        oocfmt(
+            &["convert", "missing.obj", "-o", "x.oocf", "--quiet"],
+            tmp.path()
+        )
+        .status
+        .code(),
+        Some(2)
+    );
+    assert_eq!(
+        oocfmt(
+            &["convert", "model.stl", "-o", "x.oocf", "--quiet"],
+            tmp.path()
+        )
+        .status
+        .code(),
+        Some(2)
+    );
+    assert_eq!(
+        oocfmt(
+            &[
+                "convert",
+                "empty.obj",
+                "-o",
+                "x.oocf",
+                "--mem-limit",
+                "lots"
+            ],
+            tmp.path()
+        )
+        .status
+        .code(),
+        Some(2)
+    );
+    assert!(!tmp.path().join("x.oocf").exists());
+}
+
+/// Two triangles under a translated node, with a base-colour material and a data: URI buffer.
+const QUAD_GLTF: &str = r#"{"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0, "translation": [10, 0, 0]}], "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]}], "materials": [{"name": "blue", "pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.2, 0.9, 1]}}], "buffers": [{"byteLength": 60, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAACAPwAAgD8AAAAAAAABAAIAAQADAAIA"}], "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 12}], "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}, {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}]}"#;
+
+#[test]
+fn convert_gltf_and_obj_together_into_one_scene() {
+    let tmp = scene_dir();
+    std::fs::write(tmp.path().join("quad.gltf"), QUAD_GLTF).unwrap_or_else(|e| panic!("{e}"));
+    let o = oocfmt(
+        &[
+            "convert",
+            "scene.obj",
+            "quad.gltf",
+            "-o",
+            "both.oocf",
+            "--quiet",
+            "--report-json",
+            "r.json",
+        ],
+        tmp.path(),
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}{}",
+        stdout(&o),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(tmp.path().join("r.json")).unwrap_or_default())
+            .unwrap_or_default();
+    assert_eq!(report["triangles_stored"], 8, "{report}");
+    assert_eq!(
+        report["import"]["files"].as_array().map(Vec::len),
+        Some(2),
+        "{report}"
+    );
+    let i = oocfmt(&["inspect", "--json", "both.oocf"], tmp.path());
+    let summary: serde_json::Value = serde_json::from_slice(&i.stdout).unwrap_or_default();
+    let names: Vec<&str> = summary["metadata"]["materials"]
+        .as_array()
+        .map(|m| m.iter().filter_map(|x| x["name"].as_str()).collect())
+        .unwrap_or_default();
+    assert_eq!(names, ["grey", "red", "blue"], "{summary}");
+    // The glTF node translation puts the quad at x = 10..11.
+    assert_eq!(
+        summary["metadata"]["scene"]["bounds_max"][0], 11.0,
+        "{summary}"
+    );
+    assert_eq!(
+        oocfmt(&["verify", "--deep", "both.oocf"], tmp.path())
+            .status
+            .code(),
+        Some(0)
+    );
+}
+
+#[test]
+fn convert_refuses_a_gltf_uri_outside_its_folder() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let bad = QUAD_GLTF.replace(
+        "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAACAPwAAgD8AAAAAAAABAAIAAQADAAIA",
+        "../../etc/passwd",
+    );
+    std::fs::write(tmp.path().join("bad.gltf"), bad).unwrap_or_else(|e| panic!("{e}"));
+    let o = oocfmt(
+        &["convert", "bad.gltf", "-o", "x.oocf", "--quiet"],
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("bad.gltf") && err.contains(".."), "{err}");
+    assert!(!tmp.path().join("x.oocf").exists());
+}

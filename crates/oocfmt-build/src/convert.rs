@@ -42,7 +42,11 @@ pub enum ConvertError {
     #[error("{0}: unknown input format (expected .obj, .gltf or .glb)")]
     UnknownFormat(String),
     #[error("{triangles} triangles need about {needed} bytes to build in memory, over --mem-limit {limit} (the out-of-core build is not available yet; raise the limit or split the input)")]
-    MemoryLimit { triangles: u64, needed: u64, limit: u64 },
+    MemoryLimit {
+        triangles: u64,
+        needed: u64,
+        limit: u64,
+    },
 }
 
 /// Input formats, by file extension.
@@ -71,7 +75,10 @@ struct Phases {
 impl Phases {
     fn done(&mut self, phase: &str) {
         let now = Instant::now();
-        self.list.push(PhaseTime { phase: phase.to_string(), seconds: (now - self.at).as_secs_f64() });
+        self.list.push(PhaseTime {
+            phase: phase.to_string(),
+            seconds: (now - self.at).as_secs_f64(),
+        });
         self.at = now;
     }
 }
@@ -79,9 +86,17 @@ impl Phases {
 /// Imports `inputs` into one scene and writes the container `output`. A failure leaves no file
 /// under `output` and never touches an existing one (the writer renames a finished file into
 /// place).
-pub fn convert(inputs: &[PathBuf], output: &Path, opts: &ConvertOptions, progress: &mut dyn Progress) -> Result<ConvertReport, ConvertError> {
+pub fn convert(
+    inputs: &[PathBuf],
+    output: &Path,
+    opts: &ConvertOptions,
+    progress: &mut dyn Progress,
+) -> Result<ConvertReport, ConvertError> {
     let start = Instant::now();
-    let mut phases = Phases { list: Vec::new(), at: start };
+    let mut phases = Phases {
+        list: Vec::new(),
+        at: start,
+    };
     let mut sink = MeshSink::new(opts.strict);
     progress.phase("import", Some(inputs.len() as u64));
     for (i, path) in inputs.iter().enumerate() {
@@ -94,7 +109,11 @@ pub fn convert(inputs: &[PathBuf], output: &Path, opts: &ConvertOptions, progres
     let triangles = mesh.triangles.len() as u64;
     let needed = triangles.saturating_mul(BYTES_PER_TRIANGLE_IN_CORE);
     if needed > opts.mem_limit {
-        return Err(ConvertError::MemoryLimit { triangles, needed, limit: opts.mem_limit });
+        return Err(ConvertError::MemoryLimit {
+            triangles,
+            needed,
+            limit: opts.mem_limit,
+        });
     }
 
     progress.phase("kd-tree", None);
@@ -112,7 +131,9 @@ pub fn convert(inputs: &[PathBuf], output: &Path, opts: &ConvertOptions, progres
     drop(mesh);
 
     progress.phase("write", Some(container.blocks.len() as u64));
-    let written = write_blocks(output, &container, layout.write, &mut |n| progress.advance(n))?;
+    let written = write_blocks(output, &container, layout.write, &mut |n| {
+        progress.advance(n)
+    })?;
     progress.finish_phase();
     phases.done("write");
     drop(container);
@@ -127,7 +148,11 @@ pub fn convert(inputs: &[PathBuf], output: &Path, opts: &ConvertOptions, progres
     Ok(report)
 }
 
-fn import_one(path: &Path, sink: &mut dyn TriangleSink, opts: &ConvertOptions) -> Result<(), ConvertError> {
+fn import_one(
+    path: &Path,
+    sink: &mut dyn TriangleSink,
+    opts: &ConvertOptions,
+) -> Result<(), ConvertError> {
     match InputFormat::of(path) {
         Some(InputFormat::Obj) => import::obj::import(path, sink, &opts.obj)?,
         Some(InputFormat::Gltf) => import::gltf::import(path, sink, &opts.gltf)?,

@@ -5,10 +5,13 @@
 //! tree into treelets, packs blocks and writes the file. [`gen`] makes demo scenes and
 //! [`vectors`] the spec's test vectors.
 
+pub mod convert;
 pub mod gen;
 pub mod import;
 pub mod kdtree;
 pub mod layout;
 pub mod lod;
 pub mod mesh;
+pub mod progress;
+pub mod report;
 pub mod vectors;

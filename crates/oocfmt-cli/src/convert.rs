@@ -6,6 +6,7 @@ use oocfmt::{Codec, WriteOptions};
 use oocfmt_build::convert::{convert, ConvertError, ConvertOptions};
 use oocfmt_build::import::gltf::GltfOptions;
 use oocfmt_build::import::obj::ObjOptions;
+use oocfmt_build::import::Skipped;
 use oocfmt_build::kdtree::KdBuildOptions;
 use oocfmt_build::layout::LayoutOptions;
 use oocfmt_build::report::{total_memory, ConvertReport};
@@ -63,7 +64,10 @@ pub fn parse_size(s: &str) -> Result<u64, String> {
         Some('T') => (&t[..t.len() - 1], 1 << 40),
         _ => (t, 1),
     };
-    let v: f64 = num.trim().parse().map_err(|_| format!("`{s}`: expected a size like 512M or 2G"))?;
+    let v: f64 = num
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}`: expected a size like 512M or 2G"))?;
     if !(v.is_finite() && v > 0.0) {
         return Err(format!("`{s}`: the size must be positive"));
     }
@@ -77,23 +81,46 @@ pub fn run(a: &Args) -> CliResult {
             .build_global()
             .map_err(|e| CliError::Usage(format!("--threads {n}: {e}")))?;
     }
-    let write = WriteOptions { codec: a.codec, ..WriteOptions::default() }.with_block_size(a.block_size)?;
+    let write = WriteOptions {
+        codec: a.codec,
+        ..WriteOptions::default()
+    }
+    .with_block_size(a.block_size)?;
     let opts = ConvertOptions {
-        layout: LayoutOptions { write, treelet_height: a.treelet_height, ..LayoutOptions::default() },
-        kd: KdBuildOptions { max_leaf_triangles: a.max_leaf, ..KdBuildOptions::default() },
+        layout: LayoutOptions {
+            write,
+            treelet_height: a.treelet_height,
+            ..LayoutOptions::default()
+        },
+        kd: KdBuildOptions {
+            max_leaf_triangles: a.max_leaf,
+            ..KdBuildOptions::default()
+        },
         strict: a.strict,
-        mem_limit: a.mem_limit.unwrap_or_else(|| total_memory().map_or(4 << 30, |m| m / 2)),
+        mem_limit: a
+            .mem_limit
+            .unwrap_or_else(|| total_memory().map_or(4 << 30, |m| m / 2)),
         obj: ObjOptions::default(),
-        gltf: GltfOptions { all_scenes: a.all_scenes, ..GltfOptions::default() },
+        gltf: GltfOptions {
+            all_scenes: a.all_scenes,
+            ..GltfOptions::default()
+        },
     };
     let mut progress = Phases::new(a.quiet);
     let report = convert(&a.inputs, &a.output, &opts, &mut progress).map_err(|e| match e {
-        ConvertError::Import(oocfmt_build::import::ImportError::Io { path, source }) => CliError::Io { path, source },
-        ConvertError::UnknownFormat(path) => CliError::Usage(format!("{path}: unknown input format (expected .obj, .gltf or .glb)")),
+        ConvertError::Import(oocfmt_build::import::ImportError::Io { path, source }) => {
+            CliError::Io { path, source }
+        }
+        ConvertError::UnknownFormat(path) => CliError::Usage(format!(
+            "{path}: unknown input format (expected .obj, .gltf or .glb)"
+        )),
         other => CliError::Build(other.to_string()),
     })?;
     if let Some(path) = &a.report_json {
-        std::fs::write(path, to_json(&report)?).map_err(|e| CliError::Io { path: path.display().to_string(), source: e })?;
+        std::fs::write(path, to_json(&report)?).map_err(|e| CliError::Io {
+            path: path.display().to_string(),
+            source: e,
+        })?;
     }
     print!("{}", render(&report));
     Ok(0)
@@ -103,27 +130,69 @@ fn render(r: &ConvertReport) -> String {
     use std::fmt::Write;
     let mut o = String::new();
     let i = &r.import;
-    let _ = writeln!(o, "wrote      {} ({} bytes, identity {})", r.output, r.file_bytes, r.identity);
+    let _ = writeln!(
+        o,
+        "wrote      {} ({} bytes, identity {})",
+        r.output, r.file_bytes, r.identity
+    );
     let _ = writeln!(o, "inputs     {}", i.files.join(", "));
-    let _ = writeln!(o, "triangles  {} in, {} out, {} dropped", i.triangles_in, i.triangles_out, i.dropped_total());
+    let _ = writeln!(
+        o,
+        "triangles  {} in, {} out, {} dropped",
+        i.triangles_in,
+        i.triangles_out,
+        i.dropped_total()
+    );
     for (reason, n) in &i.dropped {
         let _ = writeln!(o, "           dropped {n}: {}", reason.describe());
     }
     for (what, n) in &i.skipped {
-        let _ = writeln!(o, "           skipped {n} {what:?}");
+        let what = match what {
+            Skipped::Lines => "line segments",
+            Skipped::Points => "points",
+            Skipped::NonTrianglePrimitives => "non-triangle glTF primitives",
+        };
+        let _ = writeln!(o, "           skipped {n} {what}");
     }
     for w in &i.warnings {
         let _ = writeln!(o, "warning    {w}");
     }
-    let _ = writeln!(o, "tree       {} basic + {} LOD nodes, {} leaves, depth {}", r.basic_nodes, r.lod_nodes, r.leaves, r.depth);
-    let _ = writeln!(o, "LOD        {} one-sample + {} six-sample voxels, {} proxies", r.voxels_single, r.voxels_six, r.proxies);
+    let _ = writeln!(
+        o,
+        "tree       {} basic + {} LOD nodes, {} leaves, depth {}",
+        r.basic_nodes, r.lod_nodes, r.leaves, r.depth
+    );
+    let _ = writeln!(
+        o,
+        "LOD        {} one-sample + {} six-sample voxels, {} proxies",
+        r.voxels_single, r.voxels_six, r.proxies
+    );
     for (kind, b) in &r.blocks {
-        let _ = writeln!(o, "blocks     {kind:<9} {:>7} blocks, {:>12} raw, {:>12} stored bytes", b.blocks, b.raw_bytes, b.stored_bytes);
+        let _ = writeln!(
+            o,
+            "blocks     {kind:<9} {:>7} blocks, {:>12} raw, {:>12} stored bytes",
+            b.blocks, b.raw_bytes, b.stored_bytes
+        );
     }
-    let phases: Vec<String> = r.phases.iter().map(|p| format!("{} {:.2} s", p.phase, p.seconds)).collect();
-    let _ = writeln!(o, "time       {:.2} s ({}): {:.0} triangles/s", r.seconds, phases.join(", "), r.triangles_per_second);
+    let phases: Vec<String> = r
+        .phases
+        .iter()
+        .map(|p| format!("{} {:.2} s", p.phase, p.seconds))
+        .collect();
+    let _ = writeln!(
+        o,
+        "time       {:.2} s ({}): {:.0} triangles/s",
+        r.seconds,
+        phases.join(", "),
+        r.triangles_per_second
+    );
     if let Some(peak) = r.peak_memory_bytes {
-        let _ = writeln!(o, "memory     peak {:.1} MiB (limit {:.1} MiB)", peak as f64 / 1048576.0, r.mem_limit_bytes as f64 / 1048576.0);
+        let _ = writeln!(
+            o,
+            "memory     peak {:.1} MiB (limit {:.1} MiB)",
+            peak as f64 / 1048576.0,
+            r.mem_limit_bytes as f64 / 1048576.0
+        );
     }
     o
 }

@@ -32,7 +32,7 @@ pub struct Args {
     pub max_leaf: u32,
 }
 
-fn parse_codec(s: &str) -> Result<Codec, String> {
+pub fn parse_codec(s: &str) -> Result<Codec, String> {
     Codec::parse(s).map_err(|e| e.to_string())
 }
 

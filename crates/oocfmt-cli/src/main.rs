@@ -3,6 +3,7 @@
 //! Exit status: 0 success (for `verify`: the file is valid); 1 the file is invalid or a format
 //! error stopped the command; 2 the command could not run (bad usage, I/O error).
 
+mod convert;
 mod demo;
 mod error;
 mod hexdump;
@@ -35,6 +36,8 @@ enum Command {
     Inspect(inspect::Args),
     /// Check a container and report every problem with a stable issue code
     Verify(verify::Args),
+    /// Convert OBJ and glTF files into one container
+    Convert(convert::Args),
     /// Build a container from the built-in demo scene, then inspect and verify it
     Demo(demo::Args),
 }
@@ -51,6 +54,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(&a),
         Command::Verify(a) => verify::run(&a),
+        Command::Convert(a) => convert::run(&a),
         Command::Demo(a) => demo::run(&a),
     };
     match result {

@@ -2,8 +2,8 @@
 //! bad-input policy (drop and count, or fail under `--strict`), so every importer applies the
 //! same rules and the report adds up: triangles out = triangles in − triangles dropped.
 
-pub mod obj;
 pub mod gltf;
+pub mod obj;
 mod sink;
 
 use std::collections::BTreeMap;

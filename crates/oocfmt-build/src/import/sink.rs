@@ -1,7 +1,7 @@
 //! An in-memory sink: triangles become a de-duplicated [`Mesh`], degenerate ones are dropped
 //! and counted (or refused under `strict`).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use oocfmt::metadata::Material;
 
@@ -9,6 +9,9 @@ use super::{
     DropReason, ImportError, ImportReport, InputTriangle, Location, Skipped, TriangleSink,
 };
 use crate::mesh::Mesh;
+
+/// Material indices in triangle blocks are 16-bit (spec §8).
+const MAX_MATERIALS: usize = 1 << 16;
 
 /// The grey given to triangles without a material when others have one.
 const DEFAULT_MATERIAL: [f32; 3] = [0.8, 0.8, 0.8];
@@ -30,6 +33,7 @@ pub struct MeshSink {
     index: HashMap<[u32; 8], u32>,
     triangles: Vec<[u32; 3]>,
     materials: Vec<Option<u32>>,
+    used_materials: HashSet<Option<u32>>,
     table: Vec<Material>,
     report: ImportReport,
 }
@@ -199,6 +203,15 @@ impl TriangleSink for MeshSink {
                 at: at.clone(),
                 what: "triangles".into(),
                 limit: u64::from(u32::MAX),
+            });
+        }
+        // The format's material indices are 16 bits: refuse the triangle that needs one more,
+        // where its place is still known.
+        if self.used_materials.insert(t.material) && self.used_materials.len() > MAX_MATERIALS {
+            return Err(ImportError::Limit {
+                at: at.clone(),
+                what: "distinct materials used by triangles".into(),
+                limit: MAX_MATERIALS as u64,
             });
         }
         self.report.triangles_in += 1;

@@ -110,19 +110,32 @@ pub fn write_container(
     opts: &LayoutOptions,
 ) -> Result<(WriteSummary, Metadata), LayoutError> {
     let container = build_blocks(mesh, tree, opts)?;
-    let codec = opts.write.codec;
-    let mut writer = Writer::create(path, opts.write)?;
+    let summary = write_blocks(path, &container, opts.write, &mut |_| {})?;
+    Ok((summary, container.metadata))
+}
+
+/// Compresses the blocks of `container` (in parallel, in batches) and writes them in order with
+/// its metadata; `progress` gets the number of blocks written so far.
+pub fn write_blocks(
+    path: &Path,
+    container: &Container,
+    write: WriteOptions,
+    progress: &mut dyn FnMut(u64),
+) -> Result<WriteSummary, LayoutError> {
+    let mut writer = Writer::create(path, write)?;
+    let mut done = 0u64;
     for batch in container.blocks.chunks(ENCODE_BATCH) {
         let encoded: Vec<EncodedBlock> = batch
             .par_iter()
-            .map(|b| EncodedBlock::encode(codec, b.kind, b.level, b.item_count, &b.raw))
+            .map(|b| EncodedBlock::encode(write.codec, b.kind, b.level, b.item_count, &b.raw))
             .collect::<Result<_, _>>()?;
         for b in encoded {
             writer.write_encoded(b)?;
         }
+        done += batch.len() as u64;
+        progress(done);
     }
-    let summary = writer.finish(&container.metadata)?;
-    Ok((summary, container.metadata))
+    Ok(writer.finish(&container.metadata)?)
 }
 
 /// Plans and encodes every block (uncompressed) and fills the metadata.
