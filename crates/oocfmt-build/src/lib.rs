@@ -5,6 +5,7 @@
 //! tree into treelets, packs blocks and writes the file. [`gen`] makes demo scenes and
 //! [`vectors`] the spec's test vectors.
 
+pub mod export;
 pub mod gen;
 pub mod import;
 pub mod kdtree;
