@@ -9,9 +9,9 @@
 //! while the slabs on both sides of it are being cut, so memory is two planes of the grid,
 //! never the model.
 //!
-//! The field of a plane is evaluated in parallel, everything else in a fixed order, and the
-//! field is plain IEEE arithmetic (no trigonometry): the same options give the same bytes
-//! whatever the thread count.
+//! The field of a plane is evaluated in parallel, everything else in a fixed order, and each
+//! field value depends only on its point: the same options give the same bytes whatever the
+//! thread count.
 
 use std::path::Path;
 
@@ -193,7 +193,8 @@ impl Grid {
 /// The Mandelbulb distance estimate `0.5 · ln r · r / dr`, 0 for points that stay bounded.
 ///
 /// The power-8 step `w ← w⁸ + c` uses Quílez's polynomial form of the spherical formula
-/// (polar axis y): exact IEEE operations only, so every platform computes the same field.
+/// (polar axis y): correctly rounded IEEE operations instead of trigonometry, so the only
+/// platform-dependent step is the final `ln` of the math library.
 fn distance_estimate(c: [f64; 3]) -> f64 {
     let [mut x, mut y, mut z] = c;
     let mut r2 = x * x + y * y + z * z;
