@@ -6,6 +6,7 @@
 //! [`vectors`] the spec's test vectors.
 
 pub mod convert;
+pub mod export;
 pub mod gen;
 pub mod import;
 pub mod kdtree;

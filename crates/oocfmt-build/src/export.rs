@@ -1,0 +1,306 @@
+//! `oocfmt export`: writes the full-detail triangles of a container back out (OBJ or binary
+//! PLY), so a round trip can prove nothing was lost.
+//!
+//! Only primaries are written (spec §8: the first `primary_count` triangles of each triangle
+//! block), so every input triangle comes out exactly once however many leaves share it.
+//! Positions are the stored f32 values printed so they parse back bit for bit; a container
+//! with a non-zero `scene.origin` is exported in world coordinates (`origin + stored`, in
+//! f64), which is no longer bit-exact, and the report says so and gives the largest rounding
+//! error. Vertices are written once per block, only those the primaries use.
+
+mod obj;
+mod ply;
+
+use std::path::{Path, PathBuf};
+
+use oocfmt::metadata::{Material, Metadata};
+use oocfmt::records::triangle::Vertex;
+use oocfmt::{BlockKind, ReadOptions, Reader};
+
+pub use crate::gen::obj_writer::WriteError;
+pub use obj::write_obj;
+pub use ply::write_ply;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ExportOptions {
+    /// Add the container's `scene.origin` to positions when it is not zero (then written as
+    /// f64, not bit-exact). Off, positions are the stored ones and the origin is only noted.
+    pub world_coordinates: bool,
+}
+
+impl Default for ExportOptions {
+    fn default() -> Self {
+        ExportOptions {
+            world_coordinates: true,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ExportReport {
+    pub triangles: u64,
+    pub vertices: u64,
+    pub triangle_blocks: u64,
+    /// Size of the model file (without the `.mtl` beside an OBJ).
+    pub bytes: u64,
+    pub materials: usize,
+    /// The `.mtl` written beside an OBJ, when the container has materials.
+    pub mtl: Option<PathBuf>,
+    /// The origin added to every position (zero when none was).
+    pub origin: [f64; 3],
+    /// Whether every position is written exactly as stored.
+    pub bit_exact: bool,
+    /// The largest difference between a written coordinate and the exact `origin + stored`.
+    pub max_abs_error: f64,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    #[error(transparent)]
+    Format(#[from] oocfmt::Error),
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    #[error("{file}: the metadata counts {expected} triangles, but the triangle blocks hold {found} primaries")]
+    CountMismatch {
+        file: String,
+        expected: u64,
+        found: u64,
+    },
+    #[error("{file}: block {block}: triangle {triangle} uses material {material}, but the metadata lists {materials}")]
+    MaterialOutOfRange {
+        file: String,
+        block: u32,
+        triangle: usize,
+        material: u16,
+        materials: usize,
+    },
+    #[error("{file}: {vertices} vertices, more than the 32-bit indices of PLY can address")]
+    TooManyVertices { file: String, vertices: u64 },
+    #[error("{file}: the container changed while it was being exported")]
+    Changed { file: String },
+}
+
+/// Receives the primaries of a container: vertices numbered from 0 in the order of first use
+/// (per block), then the triangles that use them.
+trait PrimarySink {
+    fn vertex(&mut self, index: u64, v: &Vertex) -> Result<(), ExportError>;
+    fn triangle(&mut self, corners: [u64; 3], material: Option<u16>) -> Result<(), ExportError>;
+}
+
+/// An open container and its triangle blocks in file order.
+struct Container {
+    reader: Reader,
+    attrs: u16,
+    blocks: Vec<u32>,
+}
+
+/// What one walk over the primaries produced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Walked {
+    triangles: u64,
+    vertices: u64,
+}
+
+impl Container {
+    fn open(path: &Path) -> Result<Container, ExportError> {
+        let reader = Reader::open(path, ReadOptions::default())?;
+        let attrs = reader.metadata().schema.triangle_attributes();
+        let blocks = reader
+            .entries()
+            .iter()
+            .zip(0u32..)
+            .filter(|(e, _)| e.kind == BlockKind::Triangle)
+            .map(|(_, id)| id)
+            .collect();
+        Ok(Container {
+            reader,
+            attrs,
+            blocks,
+        })
+    }
+
+    fn meta(&self) -> &Metadata {
+        self.reader.metadata()
+    }
+
+    fn name(&self) -> String {
+        self.reader.name().to_string()
+    }
+
+    /// Feeds every primary to `sink`, block by block. `progress` gets (`done_before` + blocks
+    /// done, `total`).
+    fn walk(
+        &self,
+        sink: &mut dyn PrimarySink,
+        progress: &mut dyn FnMut(u64, u64),
+        done_before: u64,
+        total: u64,
+    ) -> Result<Walked, ExportError> {
+        let materials = self.meta().materials.len();
+        let mut walked = Walked {
+            triangles: 0,
+            vertices: 0,
+        };
+        let mut local: Vec<Option<u64>> = Vec::new();
+        for (done, &id) in (1u64..).zip(&self.blocks) {
+            let block = self.reader.read_block(id)?;
+            let in_block = |e: oocfmt::Error| e.in_block(id).in_file(self.reader.name());
+            let tb = block.triangles(self.attrs).map_err(in_block)?;
+            tb.check_contents().map_err(in_block)?;
+            local.clear();
+            local.resize(tb.vertex_count(), None);
+            for t in 0..tb.primary_count() {
+                let tri = tb.triangle(t).map_err(in_block)?;
+                if let Some(m) = tri.material.filter(|&m| usize::from(m) >= materials) {
+                    return Err(ExportError::MaterialOutOfRange {
+                        file: self.name(),
+                        block: id,
+                        triangle: t,
+                        material: m,
+                        materials,
+                    });
+                }
+                let mut corners = [0u64; 3];
+                for (corner, &v) in corners.iter_mut().zip(&tri.v) {
+                    let slot = local.get_mut(usize::from(v)).ok_or_else(|| {
+                        in_block(oocfmt::Error::malformed(
+                            oocfmt::Code::TriangleIndex,
+                            format!("triangle {t} names vertex {v}"),
+                        ))
+                    })?;
+                    *corner = match *slot {
+                        Some(global) => global,
+                        None => {
+                            let global = walked.vertices;
+                            sink.vertex(global, &tb.vertex(usize::from(v)).map_err(in_block)?)?;
+                            walked.vertices += 1;
+                            *slot = Some(global);
+                            global
+                        }
+                    };
+                }
+                sink.triangle(corners, tri.material)?;
+                walked.triangles += 1;
+            }
+            progress(done_before + done, total);
+        }
+        let expected = self.meta().counts.triangles;
+        if walked.triangles != expected {
+            return Err(ExportError::CountMismatch {
+                file: self.name(),
+                expected,
+                found: walked.triangles,
+            });
+        }
+        Ok(walked)
+    }
+}
+
+/// Positions as written: stored, or moved by the origin in f64 with the rounding tracked.
+struct Placement {
+    origin: Option<[f64; 3]>,
+    max_abs_error: f64,
+}
+
+impl Placement {
+    fn new(meta: &Metadata, opts: &ExportOptions) -> Placement {
+        let origin = meta.scene.origin;
+        Placement {
+            origin: (opts.world_coordinates && origin != [0.0; 3]).then_some(origin),
+            max_abs_error: 0.0,
+        }
+    }
+
+    /// `origin + p` rounded to f64, noting the exact rounding error (Knuth's two-sum).
+    fn world(&mut self, origin: [f64; 3], p: [f32; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|a| {
+            let (x, y) = (origin[a], f64::from(p[a]));
+            let s = x + y;
+            let bp = s - x;
+            let err = (x - (s - bp)) + (y - bp);
+            self.max_abs_error = self.max_abs_error.max(err.abs());
+            s
+        })
+    }
+
+    fn report(&self, report: &mut ExportReport) {
+        report.origin = self.origin.unwrap_or([0.0; 3]);
+        report.bit_exact = self.origin.is_none();
+        report.max_abs_error = self.max_abs_error;
+    }
+}
+
+/// Material names usable on an OBJ `usemtl` line and unique: whitespace becomes `_`, an
+/// empty name becomes `material_N`, and a repeated name gets `_N` appended.
+fn material_names(materials: &[Material]) -> Vec<String> {
+    let mut seen = std::collections::HashSet::new();
+    materials
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let mut name: String = m
+                .name
+                .chars()
+                .map(|c| {
+                    if c.is_whitespace() || c.is_control() {
+                        '_'
+                    } else {
+                        c
+                    }
+                })
+                .collect();
+            if name.is_empty() {
+                name = format!("material_{i}");
+            }
+            while !seen.insert(name.clone()) {
+                name = format!("{name}_{i}");
+            }
+            name
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn material_names_are_single_words_and_unique() {
+        let m = |name: &str| Material {
+            name: name.into(),
+            diffuse: [0.5; 3],
+        };
+        let names = material_names(&[m("steel"), m("red paint"), m(""), m("steel"), m("a\tb")]);
+        assert_eq!(
+            names,
+            ["steel", "red_paint", "material_2", "steel_3", "a_b"]
+        );
+    }
+
+    #[test]
+    fn the_origin_is_added_in_f64_with_its_exact_error() {
+        let mut meta = Metadata::default();
+        meta.scene.origin = [1.0e9, 0.0, -0.1];
+        let mut p = Placement::new(&meta, &ExportOptions::default());
+        let origin = p.origin.unwrap_or_default();
+        let w = p.world(origin, [0.1, 2.5, 0.1]);
+        assert_eq!(w[1], 2.5);
+        assert_eq!(w[0], 1.0e9 + f64::from(0.1f32));
+        assert!(p.max_abs_error > 0.0 && p.max_abs_error < 1e-7);
+        let mut r = ExportReport::default();
+        p.report(&mut r);
+        assert!(!r.bit_exact);
+        let off = Placement::new(
+            &meta,
+            &ExportOptions {
+                world_coordinates: false,
+            },
+        );
+        assert!(off.origin.is_none());
+        assert!(
+            Placement::new(&Metadata::default(), &ExportOptions::default())
+                .origin
+                .is_none()
+        );
+    }
+}
