@@ -453,3 +453,112 @@ fn convert_refuses_a_gltf_uri_outside_its_folder() {
     assert!(err.contains("bad.gltf") && err.contains(".."), "{err}");
     assert!(!tmp.path().join("x.oocf").exists());
 }
+
+/// The triangles of an OBJ file as sorted corner triples of position bit patterns (each
+/// triangle rotated so its smallest corner comes first), for multiset comparison.
+fn obj_triangles(path: &Path) -> Vec<[[u32; 3]; 3]> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut v: Vec<[u32; 3]> = Vec::new();
+    let mut tris = Vec::new();
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                let c: Vec<f32> = it.take(3).map(|x| x.parse().unwrap_or(f32::NAN)).collect();
+                v.push([c[0].to_bits(), c[1].to_bits(), c[2].to_bits()]);
+            }
+            Some("f") => {
+                let idx: Vec<usize> = it
+                    .map(|c| {
+                        c.split('/')
+                            .next()
+                            .and_then(|i| i.parse::<usize>().ok())
+                            .unwrap_or(0)
+                    })
+                    .collect();
+                for k in 1..idx.len() - 1 {
+                    let mut t = [v[idx[0] - 1], v[idx[k] - 1], v[idx[k + 1] - 1]];
+                    let min = (0..3).min_by_key(|&i| t[i]).unwrap_or(0);
+                    t.rotate_left(min);
+                    tris.push(t);
+                }
+            }
+            _ => {}
+        }
+    }
+    tris.sort_unstable();
+    tris
+}
+
+#[test]
+fn generated_scenes_convert_verify_and_export_without_loss() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    for (scene, tris) in [("mandelbulb", "3000"), ("cad", "3000")] {
+        let obj = format!("{scene}.obj");
+        let g = oocfmt(
+            &["gen", scene, "--tris", tris, "-o", &obj, "--quiet"],
+            tmp.path(),
+        );
+        assert_eq!(
+            g.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&g.stderr)
+        );
+        let oocf = format!("{scene}.oocf");
+        let c = oocfmt(
+            &[
+                "convert",
+                &obj,
+                "-o",
+                &oocf,
+                "--quiet",
+                "--max-leaf",
+                "4",
+                "--report-json",
+                "r.json",
+            ],
+            tmp.path(),
+        );
+        assert_eq!(
+            c.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&c.stderr)
+        );
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(tmp.path().join("r.json")).unwrap_or_default())
+                .unwrap_or_default();
+        assert_eq!(
+            oocfmt(&["verify", "--deep", &oocf], tmp.path())
+                .status
+                .code(),
+            Some(0),
+            "{scene}"
+        );
+        let back = format!("{scene}-back.obj");
+        assert_eq!(
+            oocfmt(&["export", &oocf, "-o", &back, "--quiet"], tmp.path())
+                .status
+                .code(),
+            Some(0)
+        );
+        let input = obj_triangles(&tmp.path().join(&obj));
+        let output = obj_triangles(&tmp.path().join(&back));
+        let dropped = report["import"]["dropped"]
+            .as_object()
+            .map(|d| d.values().filter_map(|n| n.as_u64()).sum::<u64>())
+            .unwrap_or(0);
+        assert_eq!(
+            output.len() as u64 + dropped,
+            input.len() as u64,
+            "{scene}: {report}"
+        );
+        if dropped == 0 {
+            assert_eq!(
+                input, output,
+                "{scene}: the exported triangles differ from the input"
+            );
+        }
+    }
+}

@@ -6,6 +6,8 @@
 mod convert;
 mod demo;
 mod error;
+mod export;
+mod gen;
 mod hexdump;
 mod inspect;
 mod inspect_block;
@@ -38,6 +40,10 @@ enum Command {
     Verify(verify::Args),
     /// Convert OBJ and glTF files into one container
     Convert(convert::Args),
+    /// Write the full-detail triangles of a container back out as OBJ or PLY
+    Export(export::Args),
+    /// Generate a test scene as OBJ (streaming, any size)
+    Gen(gen::Args),
     /// Build a container from the built-in demo scene, then inspect and verify it
     Demo(demo::Args),
 }
@@ -55,6 +61,8 @@ fn main() -> ExitCode {
         Command::Inspect(a) => inspect::run(&a),
         Command::Verify(a) => verify::run(&a),
         Command::Convert(a) => convert::run(&a),
+        Command::Export(a) => export::run(&a),
+        Command::Gen(a) => gen::run(&a),
         Command::Demo(a) => demo::run(&a),
     };
     match result {

@@ -75,3 +75,17 @@ impl oocfmt_build::progress::Progress for Phases {
         }
     }
 }
+
+/// A counting bar whose total the work sets as it learns it.
+pub fn count(label: &str, quiet: bool) -> ProgressBar {
+    let bar = ProgressBar::new(0);
+    if quiet {
+        bar.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    let style = ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} eta {eta}")
+        .map(|s| s.progress_chars("=> "))
+        .unwrap_or_else(|_| ProgressStyle::default_bar());
+    bar.set_style(style);
+    bar.set_message(label.to_string());
+    bar
+}
