@@ -11,4 +11,5 @@ pub mod kdtree;
 pub mod layout;
 pub mod lod;
 pub mod mesh;
+pub mod raycast;
 pub mod vectors;
