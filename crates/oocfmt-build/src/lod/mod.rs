@@ -58,9 +58,15 @@ impl LodData {
     }
 }
 
-/// Computes the LOD data of `nodes` (nodes of `tree` over `mesh`), in the same order. Runs in parallel over the nodes; the result does not depend on the thread count.
+/// Computes the LOD data of `nodes` (nodes of `tree` over `mesh`), in the same order. Runs in
+/// parallel over the nodes; the result does not depend on the thread count.
 pub fn compute(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId], voxel_threshold: f32) -> Vec<LodData> {
     let cells = cells_of(tree, nodes);
+    // Every LOD level sums the areas of (nearly) every triangle once more.
+    let areas: Vec<f64> = (0..mesh.triangles.len())
+        .into_par_iter()
+        .map(|t| triangle_area(mesh, t))
+        .collect();
     let cell = |id: NodeId| {
         cells
             .binary_search_by_key(&id, |&(n, _)| n)
@@ -80,7 +86,17 @@ pub fn compute(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId], voxel_threshold: f3
                 )
             },
             |(tracer, collector), &id| {
-                node_lod(mesh, tree, tracer, collector, id, cell(id), voxel_threshold)
+                let area = |t: u32| areas.get(t as usize).copied().unwrap_or(0.0);
+                node_lod(
+                    mesh,
+                    tree,
+                    tracer,
+                    collector,
+                    &area,
+                    id,
+                    cell(id),
+                    voxel_threshold,
+                )
             },
         )
         .collect()
@@ -189,17 +205,19 @@ pub fn subtree_triangles(tree: &KdTree, id: NodeId) -> Vec<u32> {
     out
 }
 
+#[allow(clippy::too_many_arguments)]
 fn node_lod<'a>(
     mesh: &'a Mesh,
     tree: &KdTree,
     tracer: &mut Tracer<'a>,
     collector: &mut Collector,
+    area: &dyn Fn(u32) -> f64,
     id: NodeId,
     cell: Bounds,
     threshold: f32,
 ) -> LodData {
     let tris = collector.collect(tree, id);
-    let area: f64 = tris.iter().map(|&t| triangle_area(mesh, t as usize)).sum();
+    let area: f64 = tris.iter().map(|&t| area(t)).sum();
     let prepared: Vec<Prepared> = if tris.len() <= EACH_TRIANGLE_MAX {
         tris.iter()
             .filter_map(|&t| {

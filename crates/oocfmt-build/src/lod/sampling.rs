@@ -11,7 +11,8 @@ use crate::raycast::{
 };
 
 /// Rays per voxel face: one per `TRIANGLES_PER_FACE_RAY` subtree triangles, clamped to
-/// `MIN ..= BASE`, and up to `MAX` when the first `BASE` leave the face's mean uncertain.
+/// `MIN ..= BASE`, and up to `MAX` when the first `BASE` leave the face's mean uncertain (a
+/// standard error above half the one-sample threshold).
 /// Small subtrees get few rays: the lowest LOD levels hold most LOD nodes, and a handful of
 /// triangles shows little detail anyway.
 pub const FACE_RAYS_MIN: usize = 4;
@@ -131,9 +132,9 @@ impl NodeSampler<'_, '_> {
             let mut dir = [0.0; 3];
             dir[a] = if f % 2 == 0 { 1.0 } else { -1.0 };
             self.cast_face(acc, f, dir, 0..base, &lo, &ext, eps);
-            // More rays where the mean's standard error could move the sample by a quarter
-            // of the one-sample threshold.
-            let uncertain = acc.spread() / (base as f64).sqrt() > f64::from(self.threshold) / 4.0;
+            // More rays where the mean's standard error could move the sample by half the
+            // one-sample threshold.
+            let uncertain = acc.spread() / (base as f64).sqrt() > f64::from(self.threshold) / 2.0;
             if base == FACE_RAYS_BASE && uncertain {
                 self.cast_face(acc, f, dir, base..FACE_RAYS_MAX, &lo, &ext, eps);
             }
