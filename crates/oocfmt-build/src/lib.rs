@@ -14,5 +14,6 @@ pub mod layout;
 pub mod lod;
 pub mod mesh;
 pub mod progress;
+pub mod raycast;
 pub mod report;
 pub mod vectors;

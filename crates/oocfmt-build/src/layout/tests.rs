@@ -481,7 +481,7 @@ fn impossible_layouts_are_refused_with_a_reason() -> Res<()> {
         "{err:?}"
     );
     // Sibling treelets that do not fit one block together.
-    let err = build_blocks(&demo, &demo_tree, &opts(4096, Codec::None, 9));
+    let err = build_blocks(&demo, &demo_tree, &opts(4096, Codec::None, 12));
     assert!(
         matches!(err, Err(LayoutError::TreeletsTooLarge { .. })),
         "{err:?}"

@@ -1,7 +1,10 @@
-//! An in-core kd-tree over a [`Mesh`]: spatial-median splits of the longest cell axis.
+//! An in-core kd-tree over a [`Mesh`]: binned SAH splits with aggressive empty-space cutting
+//! (Áfra et al. 2012, §4.1), built in parallel and identical whatever the thread count.
 //!
-//! The tree is an arena of nodes so that later builders (out-of-core, SAH) can produce the same
-//! representation and reuse the layout stage unchanged.
+//! The tree is an arena of nodes in preorder so that other builders (out-of-core, by hand) can
+//! produce the same representation and reuse the layout stage unchanged.
+
+mod sah;
 
 use crate::mesh::{Bounds, Mesh, MeshError};
 
@@ -34,7 +37,9 @@ pub enum KdNode {
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct KdBuildOptions {
-    /// Stop splitting at this many triangles (1 ..= 4095).
+    /// A node of at most this many triangles becomes a leaf (1 ..= 4095); a larger one is
+    /// split, by the SAH where a plane pays off and at the spatial median where none does.
+    /// Larger leaves only where no plane separates the triangles (see [`build_cell`]).
     pub max_leaf_triangles: u32,
     /// Most node levels on a path, root and leaf included (1 ..= 128).
     pub max_depth: u32,
@@ -42,15 +47,90 @@ pub struct KdBuildOptions {
     /// the other side. Such splits can still pay off a level later, but a run of them (cells
     /// creeping along the edge where two surfaces meet) only multiplies references.
     pub max_bad_splits: u32,
+    /// Candidate planes per axis are the inner boundaries of this many equal bins (2 ..= 256).
+    pub sah_bins: u32,
+    /// SAH cost of visiting an inner node (> 0, finite).
+    pub traversal_cost: f32,
+    /// SAH cost of intersecting one triangle (> 0, finite).
+    pub intersection_cost: f32,
+    /// An empty slab on one side of a cell thicker than this fraction of the cell is cut off
+    /// first, as a split with an empty child (0 < f ≤ 1; 1 turns cutting off).
+    pub empty_cut: f32,
 }
+
+/// The default cost of a ray-triangle test relative to a traversal step.
+pub const DEFAULT_INTERSECTION_COST: f32 = 1.5;
+/// The default empty-space cutting threshold: Áfra used 10–20 % of the cell volume.
+pub const DEFAULT_EMPTY_CUT: f32 = 0.15;
 
 impl Default for KdBuildOptions {
     fn default() -> Self {
         KdBuildOptions {
             max_leaf_triangles: 8,
-            max_depth: 48,
+            // Empty-space cuts take levels of their own, so leave room beyond log2(n).
+            max_depth: 64,
             max_bad_splits: 2,
+            sah_bins: 32,
+            traversal_cost: 1.0,
+            intersection_cost: DEFAULT_INTERSECTION_COST,
+            empty_cut: DEFAULT_EMPTY_CUT,
         }
+    }
+}
+
+impl KdBuildOptions {
+    /// Checks every field against its documented range.
+    pub fn check(&self) -> Result<(), KdError> {
+        if !(1..=MAX_LEAF_TRIANGLES).contains(&self.max_leaf_triangles) {
+            return Err(KdError::MaxLeafTriangles(self.max_leaf_triangles));
+        }
+        if !(1..=MAX_TREE_DEPTH).contains(&self.max_depth) {
+            return Err(KdError::MaxDepth(self.max_depth));
+        }
+        if !(2..=256).contains(&self.sah_bins) {
+            return Err(KdError::BadOption {
+                option: "sah_bins",
+                value: self.sah_bins.to_string(),
+                expected: "2 ..= 256",
+            });
+        }
+        for (option, v) in [
+            ("traversal_cost", self.traversal_cost),
+            ("intersection_cost", self.intersection_cost),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(KdError::BadOption {
+                    option,
+                    value: v.to_string(),
+                    expected: "a finite number > 0",
+                });
+            }
+        }
+        if !(self.empty_cut > 0.0 && self.empty_cut <= 1.0) {
+            return Err(KdError::BadOption {
+                option: "empty_cut",
+                value: self.empty_cut.to_string(),
+                expected: "0 < f ≤ 1",
+            });
+        }
+        Ok(())
+    }
+
+    /// How a tree was built with these options, as `(key, value)` pairs for the metadata
+    /// (the leaf size has a field of its own there).
+    pub fn params(&self) -> Vec<(String, String)> {
+        [
+            ("kd_split", "binned-sah".to_string()),
+            ("kd_sah_bins", self.sah_bins.to_string()),
+            ("kd_traversal_cost", self.traversal_cost.to_string()),
+            ("kd_intersection_cost", self.intersection_cost.to_string()),
+            ("kd_empty_cut", self.empty_cut.to_string()),
+            ("kd_max_depth", self.max_depth.to_string()),
+            ("kd_max_bad_splits", self.max_bad_splits.to_string()),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
     }
 }
 
@@ -62,8 +142,16 @@ pub enum KdError {
     MaxLeafTriangles(u32),
     #[error("max_depth {0} is outside 1 ..= {MAX_TREE_DEPTH}")]
     MaxDepth(u32),
-    #[error("a leaf at depth {depth} needs {triangles} triangles, over the limit of {MAX_LEAF_TRIANGLES}: they cannot be separated by spatial-median splits")]
+    #[error("{option} {value}: expected {expected}")]
+    BadOption {
+        option: &'static str,
+        value: String,
+        expected: &'static str,
+    },
+    #[error("a leaf at depth {depth} needs {triangles} triangles, over the limit of {MAX_LEAF_TRIANGLES}: no axis-aligned plane separates them (they overlap in one place, or the depth limit was reached)")]
     LeafTooLarge { triangles: usize, depth: u32 },
+    #[error("the tree needs more than {max} nodes", max = u32::MAX)]
+    TooManyNodes,
     #[error("node {node} is out of range ({nodes} nodes)")]
     NodeOutOfRange { node: u32, nodes: usize },
     #[error("node {node} is reached twice or is unreachable from the root")]
@@ -279,285 +367,66 @@ impl KdTree {
     }
 }
 
-/// Builds a kd-tree: each cell is split at the spatial median of its longest axis; a triangle
-/// goes to every side its box overlaps. Splitting stops at `max_leaf_triangles`, when every
-/// triangle straddles the plane (the split would not separate anything), after
-/// `max_bad_splits` splits that kept every triangle on one side, when the cell is too thin to
-/// split, or at `max_depth`. Deterministic: the same mesh gives the same tree.
+/// Builds a kd-tree over every triangle of `mesh`, its root cell the scene box. See
+/// [`build_cell`] for how nodes are split. Deterministic: the same mesh and options give the
+/// same tree whatever the number of threads.
 pub fn build(mesh: &Mesh, opts: &KdBuildOptions) -> Result<KdTree, KdError> {
     mesh.validate()?;
-    if !(1..=MAX_LEAF_TRIANGLES).contains(&opts.max_leaf_triangles) {
-        return Err(KdError::MaxLeafTriangles(opts.max_leaf_triangles));
-    }
-    if !(1..=MAX_TREE_DEPTH).contains(&opts.max_depth) {
-        return Err(KdError::MaxDepth(opts.max_depth));
-    }
+    opts.check()?;
     let bounds = mesh.bounds();
-    let params = vec![
-        ("kd_split".to_string(), "spatial-median".to_string()),
-        ("kd_max_depth".to_string(), opts.max_depth.to_string()),
-        (
-            "kd_max_bad_splits".to_string(),
-            opts.max_bad_splits.to_string(),
-        ),
-    ];
-    let mut b = Builder {
-        boxes: (0..mesh.triangles.len())
-            .map(|t| mesh.triangle_bounds(t))
-            .collect(),
-        opts,
-        nodes: Vec::new(),
-    };
-    let root = if mesh.triangles.is_empty() {
-        None
+    let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
+    let nodes = if all.is_empty() {
+        Vec::new()
     } else {
-        let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
-        Some(b.node(all, bounds, 1, 0)?)
+        build_cell(mesh, all, bounds, 1, opts)?
     };
     Ok(KdTree {
-        nodes: b.nodes,
-        root,
+        root: (!nodes.is_empty()).then_some(NodeId(0)),
+        nodes,
         bounds,
         max_leaf_triangles: opts.max_leaf_triangles,
-        params,
+        params: opts.params(),
     })
 }
 
-struct Builder<'a> {
-    boxes: Vec<Bounds>,
-    opts: &'a KdBuildOptions,
-    nodes: Vec<KdNode>,
-}
-
-impl Builder<'_> {
-    /// Builds the subtree for `tris` in `cell` at node level `depth`, `bad` bad splits below the
-    /// root; nodes land in preorder.
-    fn node(
-        &mut self,
-        tris: Vec<u32>,
-        cell: Bounds,
-        depth: u32,
-        bad: u32,
-    ) -> Result<NodeId, KdError> {
-        let id = NodeId(self.nodes.len() as u32);
-        let Some((axis, split, left, right)) = self.try_split(&tris, &cell, depth) else {
-            return self.leaf(id, tris, depth);
-        };
-        let n = tris.len();
-        let is_bad =
-            (left.len() == n && !right.is_empty()) || (right.len() == n && !left.is_empty());
-        let bad = bad + u32::from(is_bad);
-        if bad > self.opts.max_bad_splits {
-            return self.leaf(id, tris, depth);
-        }
-        drop(tris);
-        self.nodes.push(KdNode::Inner {
-            axis: axis as u8,
-            split,
-            children: [None, None],
+/// Builds the subtree over `triangles` (mesh triangle ids whose boxes touch `cell`) whose
+/// root sits at node level `depth` (the tree's root is level 1), for builders that place
+/// subtrees themselves (out of core). Returns its nodes in preorder with ids relative to the
+/// first, the subtree's root; an empty list gives no nodes.
+///
+/// Every triangle is tracked by the exact bounds of its part inside the current cell. A node
+/// of at most `max_leaf_triangles` becomes a leaf. A larger one first cuts off an empty slab
+/// thicker than `empty_cut` of its cell, if there is one (a split with an empty child);
+/// otherwise it takes the cheapest binned-SAH plane if that beats intersecting all its
+/// triangles, else the spatial median of the occupied part of its longest axis. A triangle
+/// goes to every side it reaches (one lying in the plane to both). A split that keeps every
+/// triangle on one side while copying some to the other is "bad"; after `max_bad_splits` of
+/// them on a path, or at `max_depth`, the node becomes a leaf (an error beyond 4095).
+pub fn build_cell(
+    mesh: &Mesh,
+    triangles: Vec<u32>,
+    cell: Bounds,
+    depth: u32,
+    opts: &KdBuildOptions,
+) -> Result<Vec<KdNode>, KdError> {
+    opts.check()?;
+    if let Some(&t) = triangles
+        .iter()
+        .find(|&&t| t as usize >= mesh.triangles.len())
+    {
+        return Err(KdError::TriangleOutOfRange {
+            node: 0,
+            triangle: t,
+            triangles: mesh.triangles.len(),
         });
-        let (lo, hi) = cell.split(axis, split);
-        let l = if left.is_empty() {
-            None
-        } else {
-            Some(self.node(left, lo, depth + 1, bad)?)
-        };
-        let r = if right.is_empty() {
-            None
-        } else {
-            Some(self.node(right, hi, depth + 1, bad)?)
-        };
-        if let Some(KdNode::Inner { children, .. }) = self.nodes.get_mut(id.index()) {
-            *children = [l, r];
-        }
-        Ok(id)
     }
-
-    fn leaf(&mut self, id: NodeId, tris: Vec<u32>, depth: u32) -> Result<NodeId, KdError> {
-        if tris.len() > MAX_LEAF_TRIANGLES as usize {
-            return Err(KdError::LeafTooLarge {
-                triangles: tris.len(),
-                depth,
-            });
-        }
-        self.nodes.push(KdNode::Leaf { triangles: tris });
-        Ok(id)
+    if triangles.is_empty() {
+        return Ok(Vec::new());
     }
-
-    /// The split of `cell` and the two triangle lists, or `None` when this should be a leaf.
-    fn try_split(
-        &self,
-        tris: &[u32],
-        cell: &Bounds,
-        depth: u32,
-    ) -> Option<(usize, f32, Vec<u32>, Vec<u32>)> {
-        if tris.len() <= self.opts.max_leaf_triangles as usize || depth >= self.opts.max_depth {
-            return None;
-        }
-        let axis = cell.longest_axis();
-        let (lo, hi) = (cell.min.get(axis).copied()?, cell.max.get(axis).copied()?);
-        // Halving each bound separately cannot overflow, and rounding keeps it inside [lo, hi].
-        let split = 0.5 * lo + 0.5 * hi;
-        if !(lo < split && split < hi) {
-            return None;
-        }
-        let (mut left, mut right) = (Vec::new(), Vec::new());
-        for &t in tris {
-            let b = self.boxes.get(t as usize).copied().unwrap_or(Bounds::EMPTY);
-            let (min, max) = (b.min.get(axis).copied()?, b.max.get(axis).copied()?);
-            // A triangle lying in the plane is on both sides; one touching it from one side is
-            // only on that side.
-            let in_plane = min == split && max == split;
-            if min < split || in_plane {
-                left.push(t);
-            }
-            if max > split || in_plane {
-                right.push(t);
-            }
-        }
-        if left.len() == tris.len() && right.len() == tris.len() {
-            return None;
-        }
-        Some((axis, split, left, right))
+    if cell.is_empty() || !cell.min.iter().chain(&cell.max).all(|c| c.is_finite()) {
+        return Err(KdError::BadBounds(cell));
     }
+    sah::Builder::new(mesh, opts).subtree(triangles, cell, depth)
 }
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A row of `n` unit squares along x, two triangles each.
-    fn strip(n: u32) -> Mesh {
-        let mut positions = Vec::new();
-        for i in 0..=n {
-            positions.push([i as f32, 0.0, 0.0]);
-            positions.push([i as f32, 1.0, 0.0]);
-        }
-        let triangles = (0..n)
-            .flat_map(|i| [[2 * i, 2 * i + 2, 2 * i + 3], [2 * i, 2 * i + 3, 2 * i + 1]])
-            .collect();
-        Mesh::new(positions, triangles)
-    }
-
-    fn leaf_sets(tree: &KdTree) -> Vec<Vec<u32>> {
-        tree.leaves_depth_first()
-            .into_iter()
-            .filter_map(|id| match tree.node(id) {
-                Some(KdNode::Leaf { triangles }) => Some(triangles.clone()),
-                _ => None,
-            })
-            .collect()
-    }
-
-    #[test]
-    fn splits_separate_a_strip_and_cover_every_triangle() {
-        let mesh = strip(8);
-        let tree = build(
-            &mesh,
-            &KdBuildOptions {
-                max_leaf_triangles: 2,
-                ..KdBuildOptions::default()
-            },
-        );
-        let Ok(tree) = tree else { panic!("{tree:?}") };
-        let leaves = leaf_sets(&tree);
-        assert_eq!(leaves.len(), 8);
-        assert!(leaves.iter().all(|l| l.len() == 2));
-        let mut all: Vec<u32> = leaves.concat();
-        all.sort_unstable();
-        assert_eq!(all, (0..16).collect::<Vec<_>>());
-        assert_eq!(tree.depth(), 4);
-        assert_eq!(
-            tree.node(NodeId(0)),
-            Some(&KdNode::Inner {
-                axis: 0,
-                split: 4.0,
-                children: [Some(NodeId(1)), Some(NodeId(8))]
-            })
-        );
-    }
-
-    #[test]
-    fn straddlers_go_both_ways_and_unsplittable_sets_stop() {
-        // Both triangles of a square span the whole square: no split separates them.
-        let tree = build(
-            &strip(1),
-            &KdBuildOptions {
-                max_leaf_triangles: 1,
-                ..KdBuildOptions::default()
-            },
-        );
-        assert_eq!(tree.map(|t| leaf_sets(&t)), Ok(vec![vec![0, 1]]));
-    }
-
-    #[test]
-    fn the_build_is_deterministic_and_passes_its_own_checks() {
-        let mesh = strip(37);
-        let opts = KdBuildOptions {
-            max_leaf_triangles: 3,
-            max_depth: 20,
-            ..KdBuildOptions::default()
-        };
-        let a = build(&mesh, &opts);
-        assert_eq!(a, build(&mesh, &opts));
-        let Ok(a) = a else { panic!("{a:?}") };
-        let again = KdTree::from_parts(&mesh, a.nodes().to_vec(), a.root(), a.bounds(), Vec::new());
-        assert!(again.is_ok(), "{again:?}");
-        assert!(a.depth() <= 20);
-    }
-
-    #[test]
-    fn an_empty_mesh_gives_an_empty_tree() {
-        let tree = build(&Mesh::default(), &KdBuildOptions::default());
-        assert_eq!(tree.as_ref().map(|t| (t.root(), t.depth())), Ok((None, 0)));
-    }
-
-    #[test]
-    fn bad_parts_are_refused() {
-        let mesh = strip(1);
-        let bounds = mesh.bounds();
-        let leaf = KdNode::Leaf {
-            triangles: vec![0, 1],
-        };
-        let shared = vec![
-            KdNode::Inner {
-                axis: 0,
-                split: 0.5,
-                children: [Some(NodeId(1)), Some(NodeId(1))],
-            },
-            leaf.clone(),
-        ];
-        assert_eq!(
-            KdTree::from_parts(&mesh, shared, Some(NodeId(0)), bounds, Vec::new()),
-            Err(KdError::NotATree { node: 1 })
-        );
-        let outside = vec![
-            KdNode::Inner {
-                axis: 0,
-                split: 2.0,
-                children: [Some(NodeId(1)), None],
-            },
-            leaf.clone(),
-        ];
-        assert!(matches!(
-            KdTree::from_parts(&mesh, outside, Some(NodeId(0)), bounds, Vec::new()),
-            Err(KdError::BadSplit { .. })
-        ));
-        let bad_tri = vec![KdNode::Leaf { triangles: vec![2] }];
-        assert!(matches!(
-            KdTree::from_parts(&mesh, bad_tri, Some(NodeId(0)), bounds, Vec::new()),
-            Err(KdError::TriangleOutOfRange { .. })
-        ));
-        assert!(matches!(
-            build(
-                &mesh,
-                &KdBuildOptions {
-                    max_leaf_triangles: 0,
-                    max_depth: 4,
-                    ..KdBuildOptions::default()
-                }
-            ),
-            Err(KdError::MaxLeafTriangles(0))
-        ));
-    }
-}
+mod tests;

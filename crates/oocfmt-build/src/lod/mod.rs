@@ -1,0 +1,321 @@
+//! Level-of-detail data for LOD nodes: a voxel (one or six shading samples) and an 18-direction
+//! proxy record, sampled with rays against the node's own subtree so that only what is visible
+//! from outside counts (Áfra et al. 2012, §4.2; Wald et al. 2004, §5.2): yellow cables inside a
+//! green hull leave the hull's voxel and proxy green.
+//!
+//! Each face of a LOD node's cell shoots Halton-distributed rays straight in; the first hit of
+//! each gives a normal and a colour, and their means are the face's sample. The faces' samples
+//! double as the proxy's six axis directions; the twelve diagonal directions shoot their own
+//! rays over the cell's silhouette. Ray counts grow with the subtree up to a fixed cap, so a
+//! node costs O(rays × depth), not O(triangles).
+
+mod halton;
+mod sampling;
+
+use oocfmt::records::{ProxyRecord, Sample, Voxel};
+use rayon::prelude::*;
+
+use crate::kdtree::{KdNode, KdTree, NodeId};
+use crate::mesh::{Bounds, Mesh};
+use crate::raycast::{cross, dot, normalise, sub, Prepared, Tracer};
+pub use sampling::{
+    DIAGONAL_RAYS_MAX, DIAGONAL_RAYS_MIN, FACE_RAYS_BASE, FACE_RAYS_MAX, FACE_RAYS_MIN,
+    TRIANGLES_PER_DIAGONAL_RAY, TRIANGLES_PER_FACE_RAY,
+};
+
+/// Subtrees of at most this many distinct triangles test every ray against each of them
+/// instead of traversing the tree: the lowest LOD levels are most of the work, and there a
+/// flat loop over a few prepared triangles beats pointer-chasing through a handful of nodes.
+pub const EACH_TRIANGLE_MAX: usize = 24;
+
+/// The value recorded under `lod_sampling` in the build parameters: the method and the ray
+/// counts above (checked against them by a test).
+pub const LOD_SAMPLING: &str = "first-hit rays, Halton 2/3: 1 per 8 triangles per face \
+     (4..16, 64 if uncertain), 1 per 24 per diagonal (2..16, else blended faces)";
+/// The default largest difference (normal component or colour channel) between a face sample
+/// and the mean for a voxel to be stored as one sample.
+pub const DEFAULT_VOXEL_THRESHOLD: f32 = 0.1;
+
+/// The LOD data of one node.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LodData {
+    pub voxel: Voxel,
+    /// What a ray travelling along each of [`oocfmt::records::PROXY_DIRECTIONS`] sees;
+    /// [`Sample::EMPTY`] where no ray hit anything.
+    pub proxy_samples: [Sample; 18],
+    /// Total area of the subtree's distinct triangles.
+    pub area: f32,
+}
+
+impl LodData {
+    /// The proxy record of this node, once the layout knows which block holds the node.
+    pub fn proxy(&self, node_block: u32) -> ProxyRecord {
+        ProxyRecord {
+            node_block,
+            area: self.area,
+            samples: self.proxy_samples,
+        }
+    }
+}
+
+/// Computes the LOD data of `nodes` (nodes of `tree` over `mesh`), in the same order. Runs in
+/// parallel over the nodes; the result does not depend on the thread count.
+pub fn compute(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId], voxel_threshold: f32) -> Vec<LodData> {
+    let cells = cells_of(tree, nodes);
+    // Every LOD level sums the areas of (nearly) every triangle once more.
+    let areas: Vec<f64> = (0..mesh.triangles.len())
+        .into_par_iter()
+        .map(|t| triangle_area(mesh, t))
+        .collect();
+    let cell = |id: NodeId| {
+        cells
+            .binary_search_by_key(&id, |&(n, _)| n)
+            .ok()
+            .and_then(|k| cells.get(k))
+            .map_or(Bounds::EMPTY, |&(_, c)| c)
+    };
+    nodes
+        .par_iter()
+        // Each task allocates a mark per mesh triangle: keep tasks from getting tiny.
+        .with_min_len(64)
+        .map_init(
+            || {
+                (
+                    Tracer::new(mesh, tree),
+                    Collector::new(mesh.triangles.len()),
+                )
+            },
+            |(tracer, collector), &id| {
+                let area = |t: u32| areas.get(t as usize).copied().unwrap_or(0.0);
+                node_lod(
+                    mesh,
+                    tree,
+                    tracer,
+                    collector,
+                    &area,
+                    id,
+                    cell(id),
+                    voxel_threshold,
+                )
+            },
+        )
+        .collect()
+}
+
+/// The cells of `nodes`, sorted by node id (a node not reached from the root is left out).
+pub fn cells_of(tree: &KdTree, nodes: &[NodeId]) -> Vec<(NodeId, Bounds)> {
+    let mut wanted = vec![false; tree.nodes().len()];
+    for id in nodes {
+        if let Some(w) = wanted.get_mut(id.index()) {
+            *w = true;
+        }
+    }
+    let mut out = Vec::with_capacity(nodes.len());
+    let mut stack: Vec<(NodeId, Bounds)> = tree
+        .root()
+        .map(|r| (r, tree.bounds()))
+        .into_iter()
+        .collect();
+    while let Some((id, cell)) = stack.pop() {
+        if wanted.get(id.index()).copied().unwrap_or(false) {
+            out.push((id, cell));
+        }
+        if let Some(&KdNode::Inner {
+            axis,
+            split,
+            children,
+        }) = tree.node(id)
+        {
+            let (lo, hi) = cell.split(usize::from(axis), split);
+            for (c, cc) in children.into_iter().zip([lo, hi]) {
+                if let Some(c) = c {
+                    stack.push((c, cc));
+                }
+            }
+        }
+    }
+    out.sort_unstable_by_key(|&(id, _)| id);
+    out
+}
+
+/// Collects the distinct triangles of subtrees without sorting them: each mesh triangle's mark
+/// holds the number of the last collection that took it.
+struct Collector {
+    marks: Vec<u32>,
+    stamp: u32,
+    stack: Vec<NodeId>,
+    triangles: Vec<u32>,
+}
+
+impl Collector {
+    fn new(triangles: usize) -> Collector {
+        Collector {
+            marks: vec![0; triangles],
+            stamp: 0,
+            stack: Vec::new(),
+            triangles: Vec::new(),
+        }
+    }
+
+    /// The distinct triangles under `id`, in the order a depth-first walk meets them.
+    fn collect(&mut self, tree: &KdTree, id: NodeId) -> &[u32] {
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.marks.fill(0);
+            self.stamp = 1;
+        }
+        self.triangles.clear();
+        self.stack.clear();
+        self.stack.push(id);
+        while let Some(n) = self.stack.pop() {
+            match tree.node(n) {
+                Some(KdNode::Leaf { triangles }) => {
+                    for &t in triangles {
+                        if let Some(m) = self.marks.get_mut(t as usize) {
+                            if *m != self.stamp {
+                                *m = self.stamp;
+                                self.triangles.push(t);
+                            }
+                        }
+                    }
+                }
+                Some(KdNode::Inner { children, .. }) => {
+                    self.stack.extend(children.iter().flatten())
+                }
+                None => {}
+            }
+        }
+        &self.triangles
+    }
+}
+
+/// The distinct mesh triangles referenced by the leaves under `id`, sorted.
+pub fn subtree_triangles(tree: &KdTree, id: NodeId) -> Vec<u32> {
+    let mut out = Vec::new();
+    let mut stack = vec![id];
+    while let Some(n) = stack.pop() {
+        match tree.node(n) {
+            Some(KdNode::Leaf { triangles }) => out.extend_from_slice(triangles),
+            Some(KdNode::Inner { children, .. }) => stack.extend(children.iter().flatten()),
+            None => {}
+        }
+    }
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+#[allow(clippy::too_many_arguments)]
+fn node_lod<'a>(
+    mesh: &'a Mesh,
+    tree: &KdTree,
+    tracer: &mut Tracer<'a>,
+    collector: &mut Collector,
+    area: &dyn Fn(u32) -> f64,
+    id: NodeId,
+    cell: Bounds,
+    threshold: f32,
+) -> LodData {
+    let tris = collector.collect(tree, id);
+    let area: f64 = tris.iter().map(|&t| area(t)).sum();
+    let prepared: Vec<Prepared> = if tris.len() <= EACH_TRIANGLE_MAX {
+        tris.iter()
+            .filter_map(|&t| {
+                let c = mesh.corners(t as usize)?;
+                Some(Prepared::new(t, c.map(|p| p.map(f64::from))))
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let target = if tris.len() <= EACH_TRIANGLE_MAX {
+        sampling::Target::Each(&prepared)
+    } else {
+        sampling::Target::Subtree(id)
+    };
+    let sampled = sampling::NodeSampler {
+        mesh,
+        tracer,
+        target,
+        cell,
+        triangles: tris.len(),
+        threshold,
+    }
+    .run();
+    LodData {
+        // No ray hit anything (a sliver too thin for the rays between them): the voxel still
+        // needs a colour, so fall back on the area-weighted mean of the subtree.
+        voxel: sampled
+            .voxel
+            .unwrap_or_else(|| Voxel::Single(unoccluded_mean(mesh, tris))),
+        proxy_samples: sampled.proxy,
+        area: (area as f32).min(f32::MAX),
+    }
+}
+
+fn triangle_area(mesh: &Mesh, t: usize) -> f64 {
+    mesh.corners(t).map_or(0.0, |c| {
+        let p = c.map(|v| v.map(f64::from));
+        let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+        0.5 * dot(n, n).sqrt()
+    })
+}
+
+/// The area-weighted mean geometric normal and colour of `tris`, ignoring occlusion.
+fn unoccluded_mean(mesh: &Mesh, tris: &[u32]) -> Sample {
+    let (mut normal, mut colour, mut weight) = ([0.0f64; 3], [0.0f64; 3], 0.0f64);
+    for &t in tris {
+        let t = t as usize;
+        let (Some(c), Some(idx)) = (mesh.corners(t), mesh.triangles.get(t)) else {
+            continue;
+        };
+        let p = c.map(|v| v.map(f64::from));
+        let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+        // Degenerate triangles still lend their colour.
+        let w = 0.5 * dot(n, n).sqrt() + 1e-30;
+        let col = vertex_colour(mesh, idx).unwrap_or_else(|| material_colour(mesh, t));
+        for a in 0..3 {
+            normal[a] += 0.5 * n[a];
+            colour[a] += w * col[a];
+        }
+        weight += w;
+    }
+    let colour = if weight > 0.0 {
+        colour.map(|c| (c / weight) as f32)
+    } else {
+        [1.0; 3]
+    };
+    Sample::pack(normalise(normal).map(|c| c as f32), colour)
+}
+
+/// The mean of a triangle's vertex colours, when the mesh has them.
+fn vertex_colour(mesh: &Mesh, idx: &[u32; 3]) -> Option<[f64; 3]> {
+    let cs = mesh.colours.as_ref()?;
+    let mut sum = [0.0f64; 3];
+    for c in idx.iter().filter_map(|&v| cs.get(v as usize)) {
+        for a in 0..3 {
+            sum[a] += f64::from(c[a]) / 255.0 / 3.0;
+        }
+    }
+    Some(sum)
+}
+
+/// The triangle's material's diffuse colour, else white.
+fn material_colour(mesh: &Mesh, t: usize) -> [f64; 3] {
+    mesh.materials
+        .as_ref()
+        .and_then(|m| m.get(t))
+        .and_then(|&m| mesh.material_table.get(usize::from(m)))
+        .map_or([1.0; 3], |m| m.diffuse.map(f64::from))
+}
+
+/// The largest difference of a normal component or colour channel, as stored.
+fn difference(a: Sample, b: Sample) -> f32 {
+    let (na, nb, ca, cb) = (a.normal(), b.normal(), a.colour(), b.colour());
+    (0..3)
+        .map(|i| (na[i] - nb[i]).abs().max((ca[i] - cb[i]).abs()))
+        .fold(0.0, f32::max)
+}
+
+#[cfg(test)]
+mod tests;

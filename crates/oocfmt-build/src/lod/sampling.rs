@@ -1,0 +1,409 @@
+//! Ray sampling of one LOD node: rays from outside its cell, through its faces, against its
+//! own subtree; the first hit of each ray is what a viewer on that side sees.
+
+use oocfmt::records::{Sample, Voxel, PROXY_DIRECTIONS};
+
+use super::halton;
+use crate::kdtree::NodeId;
+use crate::mesh::{Bounds, Mesh};
+use crate::raycast::{
+    clip_to_box, cross, dot, first_hit_of, normalise, sub, Hit, Prepared, Ray, Tracer,
+};
+
+/// Rays per voxel face: one per `TRIANGLES_PER_FACE_RAY` subtree triangles, clamped to
+/// `MIN ..= BASE`, and up to `MAX` when the first `BASE` leave the face's mean uncertain (a
+/// standard error above half the one-sample threshold).
+/// Small subtrees get few rays: the lowest LOD levels hold most LOD nodes, and a handful of
+/// triangles shows little detail anyway.
+pub const FACE_RAYS_MIN: usize = 4;
+pub const FACE_RAYS_BASE: usize = 16;
+pub const FACE_RAYS_MAX: usize = 64;
+pub const TRIANGLES_PER_FACE_RAY: usize = 8;
+/// Rays per diagonal proxy direction: one per `TRIANGLES_PER_DIAGONAL_RAY` subtree triangles,
+/// at most `MAX`. Subtrees too small for `MIN` rays blend the samples of the two or three
+/// faces the direction looks through instead, weighted by their visible projected areas. The
+/// six axis directions always reuse the face rays.
+pub const DIAGONAL_RAYS_MIN: usize = 2;
+pub const DIAGONAL_RAYS_MAX: usize = 16;
+pub const TRIANGLES_PER_DIAGONAL_RAY: usize = 24;
+
+/// What the rays of one node are tested against.
+pub(super) enum Target<'t> {
+    /// A small subtree's triangles, each tested: cheaper than traversing the subtree.
+    Each(&'t [Prepared]),
+    /// The subtree under this node, traversed.
+    Subtree(NodeId),
+}
+
+/// What the hits of one face or direction add up to.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Acc {
+    rays: u32,
+    hits: u32,
+    /// Unit normals turned to face the ray, summed.
+    facing: [f64; 3],
+    /// Unit normals as the mesh orients them, summed.
+    raw: [f64; 3],
+    colour: [f64; 3],
+    /// Squares of the facing normals' and colours' components, summed (for the spread).
+    squares: [f64; 6],
+}
+
+impl Acc {
+    fn add(&mut self, facing: [f64; 3], raw: [f64; 3], colour: [f64; 3]) {
+        self.hits += 1;
+        for a in 0..3 {
+            self.facing[a] += facing[a];
+            self.raw[a] += raw[a];
+            self.colour[a] += colour[a];
+            self.squares[a] += facing[a] * facing[a];
+            self.squares[3 + a] += colour[a] * colour[a];
+        }
+    }
+
+    /// The largest standard deviation of a facing-normal component or colour channel.
+    fn spread(&self) -> f64 {
+        if self.hits < 2 {
+            return 0.0;
+        }
+        let h = f64::from(self.hits);
+        let means = [self.facing, self.colour].concat();
+        means
+            .iter()
+            .zip(&self.squares)
+            .map(|(&s, &q)| (q / h - (s / h) * (s / h)).max(0.0).sqrt())
+            .fold(0.0, f64::max)
+    }
+
+    fn mean_colour(&self) -> [f32; 3] {
+        let h = f64::from(self.hits.max(1));
+        self.colour.map(|c| (c / h) as f32)
+    }
+
+    /// The sample as seen along the rays, or `None` without hits.
+    fn facing_sample(&self) -> Option<Sample> {
+        (self.hits > 0).then(|| Sample::pack(self.facing.map(|c| c as f32), self.mean_colour()))
+    }
+}
+
+/// Ray tracing state for one LOD node.
+pub(super) struct NodeSampler<'a, 'b> {
+    pub mesh: &'a Mesh,
+    pub tracer: &'b mut Tracer<'a>,
+    pub target: Target<'b>,
+    pub cell: Bounds,
+    /// Distinct triangles in the subtree: sets the ray counts.
+    pub triangles: usize,
+    pub threshold: f32,
+}
+
+/// The voxel (`None` when no ray hit anything) and the 18 proxy samples of a node.
+pub(super) struct Sampled {
+    pub voxel: Option<Voxel>,
+    pub proxy: [Sample; 18],
+}
+
+impl NodeSampler<'_, '_> {
+    pub fn run(&mut self) -> Sampled {
+        let lo = self.cell.min.map(f64::from);
+        let ext: [f64; 3] = std::array::from_fn(|a| f64::from(self.cell.max[a]) - lo[a]);
+        let diag = dot(ext, ext).sqrt();
+        let scale = self
+            .cell
+            .min
+            .iter()
+            .chain(&self.cell.max)
+            .fold(0.0f64, |m, &c| m.max(f64::from(c).abs()));
+        // Rays start on the cell's boundary, often on a surface lying in it: allow hits a
+        // rounding error behind the start.
+        let eps = 1e-9 * (diag + scale);
+        let face_area = |f: usize| {
+            let a = f / 2;
+            ext[(a + 1) % 3] * ext[(a + 2) % 3]
+        };
+
+        let mut faces = [Acc::default(); 6];
+        let base = (self.triangles / TRIANGLES_PER_FACE_RAY).clamp(FACE_RAYS_MIN, FACE_RAYS_BASE);
+        for (f, acc) in faces.iter_mut().enumerate() {
+            if face_area(f) <= 0.0 {
+                continue;
+            }
+            let a = f / 2;
+            let mut dir = [0.0; 3];
+            dir[a] = if f % 2 == 0 { 1.0 } else { -1.0 };
+            self.cast_face(acc, f, dir, 0..base, &lo, &ext, eps);
+            // More rays where the mean's standard error could move the sample by half the
+            // one-sample threshold.
+            let uncertain = acc.spread() / (base as f64).sqrt() > f64::from(self.threshold) / 2.0;
+            if base == FACE_RAYS_BASE && uncertain {
+                self.cast_face(acc, f, dir, base..FACE_RAYS_MAX, &lo, &ext, eps);
+            }
+        }
+        let areas: [f64; 6] = std::array::from_fn(face_area);
+
+        let mut proxy = [Sample::EMPTY; 18];
+        for (p, acc) in proxy.iter_mut().zip(&faces) {
+            *p = acc.facing_sample().unwrap_or(Sample::EMPTY);
+        }
+        let rays = (self.triangles / TRIANGLES_PER_DIAGONAL_RAY).min(DIAGONAL_RAYS_MAX);
+        for (p, d) in proxy.iter_mut().zip(PROXY_DIRECTIONS).skip(6) {
+            let dir = normalise(d.map(f64::from));
+            *p = if rays < DIAGONAL_RAYS_MIN {
+                blend(&faces, &areas, dir)
+            } else {
+                let acc = self.cast_direction(dir, rays, &lo, &ext, &face_area, eps);
+                acc.facing_sample().unwrap_or(Sample::EMPTY)
+            };
+        }
+
+        Sampled {
+            voxel: voxel(&faces, &areas, self.threshold),
+            proxy,
+        }
+    }
+
+    /// Casts rays `range` of face `f`'s Halton sequence straight through the cell.
+    #[allow(clippy::too_many_arguments)]
+    fn cast_face(
+        &mut self,
+        acc: &mut Acc,
+        f: usize,
+        dir: [f64; 3],
+        range: std::ops::Range<usize>,
+        lo: &[f64; 3],
+        ext: &[f64; 3],
+        eps: f64,
+    ) {
+        for i in range {
+            let origin = face_point(f, i, lo, ext);
+            let ray = Ray::new(origin, dir);
+            acc.rays += 1;
+            self.trace(acc, &ray, ext[f / 2], eps);
+        }
+    }
+
+    /// Casts `rays` rays along `dir` from the faces it enters through, spread over them in
+    /// proportion to their projected areas, so they cover the cell's silhouette evenly.
+    fn cast_direction(
+        &mut self,
+        dir: [f64; 3],
+        rays: usize,
+        lo: &[f64; 3],
+        ext: &[f64; 3],
+        face_area: &dyn Fn(usize) -> f64,
+        eps: f64,
+    ) -> Acc {
+        let mut acc = Acc::default();
+        // Face f's outward normal is −axis for even f, +axis for odd f; it is entered by a
+        // ray whose direction points against that normal.
+        let weights: [f64; 6] = std::array::from_fn(|f| {
+            let facing = -outward(f) * dir[f / 2];
+            if facing > 0.0 {
+                face_area(f) * facing
+            } else {
+                0.0
+            }
+        });
+        let total: f64 = weights.iter().sum();
+        if total <= 0.0 {
+            return acc;
+        }
+        let mut used = [0usize; 6];
+        for i in 0..rays {
+            let target = (i as f64 + 0.5) / rays as f64 * total;
+            let mut f = 5;
+            let mut cumulative = 0.0;
+            for (k, w) in weights.iter().enumerate() {
+                cumulative += w;
+                if *w > 0.0 && target < cumulative {
+                    f = k;
+                    break;
+                }
+            }
+            let Some(n) = used.get_mut(f) else { continue };
+            let origin = face_point(f, *n, lo, ext);
+            *n += 1;
+            let ray = Ray::new(origin, dir);
+            acc.rays += 1;
+            let cell = self.cell;
+            let Some((_, t1)) = clip_to_box(&ray, &cell) else {
+                continue;
+            };
+            self.trace(&mut acc, &ray, t1.max(0.0), eps);
+        }
+        acc
+    }
+
+    fn trace(&mut self, acc: &mut Acc, ray: &Ray, t1: f64, eps: f64) {
+        let hit = match self.target {
+            Target::Each(triangles) => first_hit_of(triangles, ray, 0.0, t1, eps),
+            Target::Subtree(node) => self.tracer.first_hit(node, ray, 0.0, t1, eps),
+        };
+        if let Some(hit) = hit {
+            if let Some((facing, raw, colour)) = shade(self.mesh, &hit, ray.dir) {
+                acc.add(facing, raw, colour);
+            }
+        }
+    }
+}
+
+/// Face `f`'s outward normal component along its axis: −1 for even `f`, +1 for odd.
+fn outward(f: usize) -> f64 {
+    if f % 2 == 0 {
+        -1.0
+    } else {
+        1.0
+    }
+}
+
+/// What a ray along `dir` sees, from the samples of the faces it enters through: their mean
+/// normals and colours weighted by each face's projected area times the share of its rays
+/// that hit. [`Sample::EMPTY`] when none of those faces saw anything.
+fn blend(faces: &[Acc; 6], areas: &[f64; 6], dir: [f64; 3]) -> Sample {
+    let (mut normal, mut colour, mut total) = ([0.0f64; 3], [0.0f64; 3], 0.0f64);
+    for (f, acc) in faces.iter().enumerate() {
+        let facing = -outward(f) * dir[f / 2];
+        if facing <= 0.0 || acc.hits == 0 {
+            continue;
+        }
+        let w = areas[f] * facing * f64::from(acc.hits) / f64::from(acc.rays.max(1));
+        let n = normalise(acc.facing);
+        let c = acc.mean_colour();
+        for a in 0..3 {
+            normal[a] += w * n[a];
+            colour[a] += w * f64::from(c[a]);
+        }
+        total += w;
+    }
+    if total <= 0.0 {
+        return Sample::EMPTY;
+    }
+    Sample::pack(normal.map(|c| c as f32), colour.map(|c| (c / total) as f32))
+}
+
+/// Point `i` of the Halton sequence on face `f` of the cell `lo + [0, ext]`.
+fn face_point(f: usize, i: usize, lo: &[f64; 3], ext: &[f64; 3]) -> [f64; 3] {
+    let a = f / 2;
+    let (u, v) = ((a + 1) % 3, (a + 2) % 3);
+    let [hu, hv] = halton::point(i as u64);
+    let mut o = *lo;
+    if f % 2 == 1 {
+        o[a] += ext[a];
+    }
+    o[u] += hu * ext[u];
+    o[v] += hv * ext[v];
+    o
+}
+
+/// The normal turned to face a ray along `dir`, the mesh's own normal, and the colour at a hit.
+/// Normals are the interpolated vertex normals when the mesh has them, else the geometric one.
+fn shade(mesh: &Mesh, hit: &Hit, dir: [f64; 3]) -> Option<([f64; 3], [f64; 3], [f64; 3])> {
+    let t = hit.triangle as usize;
+    let idx = *mesh.triangles.get(t)?;
+    let p = mesh.corners(t)?.map(|c| c.map(f64::from));
+    let w = [1.0 - hit.u - hit.v, hit.u, hit.v];
+    let geometric = normalise(cross(sub(p[1], p[0]), sub(p[2], p[0])));
+    let interpolated = mesh.normals.as_ref().map(|ns| {
+        let mut sum = [0.0; 3];
+        for (&v, &wk) in idx.iter().zip(&w) {
+            if let Some(n) = ns.get(v as usize) {
+                for a in 0..3 {
+                    sum[a] += wk * f64::from(n[a]);
+                }
+            }
+        }
+        normalise(sum)
+    });
+    let raw = match interpolated {
+        Some(n) if dot(n, n) > 0.0 => n,
+        _ => geometric,
+    };
+    let facing = if dot(raw, dir) > 0.0 {
+        raw.map(|c| -c)
+    } else {
+        raw
+    };
+    let colour = match &mesh.colours {
+        Some(cs) => {
+            let mut sum = [0.0; 3];
+            for (&v, &wk) in idx.iter().zip(&w) {
+                if let Some(c) = cs.get(v as usize) {
+                    for a in 0..3 {
+                        sum[a] += wk * f64::from(c[a]) / 255.0;
+                    }
+                }
+            }
+            sum
+        }
+        None => super::material_colour(mesh, t),
+    };
+    Some((facing, raw, colour))
+}
+
+/// The voxel from the six faces' hits, `None` when no face saw anything.
+///
+/// Each face's sample shows the surface turned towards that face's rays. Whether one sample
+/// will do is decided on the normals brought to one orientation first: a flat patch looks the
+/// same from its front and its back, and a renderer turns the normal towards the viewer
+/// anyway; only with all six agreeing is it stored once, oriented as the mesh orients it.
+fn voxel(faces: &[Acc; 6], areas: &[f64; 6], threshold: f32) -> Option<Voxel> {
+    let hits: u32 = faces.iter().map(|f| f.hits).sum();
+    if hits == 0 {
+        return None;
+    }
+    let units: [[f64; 3]; 6] = std::array::from_fn(|f| normalise(faces[f].facing));
+    let raw: [f64; 3] = std::array::from_fn(|a| faces.iter().map(|f| f.raw[a]).sum());
+    // Visible area through each face: its area times the share of its rays that hit.
+    let weights: [f64; 6] = std::array::from_fn(|f| {
+        let acc = &faces[f];
+        if acc.hits == 0 {
+            0.0
+        } else {
+            areas[f] * f64::from(acc.hits) / f64::from(acc.rays.max(1))
+        }
+    });
+    let heaviest = (0..6).fold(0, |b, f| if weights[f] > weights[b] { f } else { b });
+    let reference = if dot(raw, raw).sqrt() > 1e-9 * f64::from(hits) {
+        raw
+    } else {
+        units[heaviest]
+    };
+    let aligned: [[f64; 3]; 6] = std::array::from_fn(|f| {
+        if dot(units[f], reference) < 0.0 {
+            units[f].map(|c| -c)
+        } else {
+            units[f]
+        }
+    });
+    let weight_sum: f64 = weights.iter().sum();
+    let (mut normal, mut colour) = ([0.0f64; 3], [0.0f64; 3]);
+    for f in 0..6 {
+        let acc = &faces[f];
+        if acc.hits == 0 {
+            continue;
+        }
+        // Flat cells have faces of zero area; count hits then.
+        let w = if weight_sum > 0.0 {
+            weights[f] / weight_sum
+        } else {
+            f64::from(acc.hits) / f64::from(hits)
+        };
+        let c = acc.mean_colour();
+        for a in 0..3 {
+            normal[a] += w * aligned[f][a];
+            colour[a] += w * f64::from(c[a]);
+        }
+    }
+    let mean = Sample::pack(normal.map(|c| c as f32), colour.map(|c| c as f32));
+    let agree = (0..6).filter(|&f| faces[f].hits > 0).all(|f| {
+        let s = Sample::pack(aligned[f].map(|c| c as f32), faces[f].mean_colour());
+        super::difference(s, mean) <= threshold
+    });
+    Some(if agree {
+        Voxel::Single(mean)
+    } else {
+        Voxel::Six(std::array::from_fn(|f| {
+            faces[f].facing_sample().unwrap_or(mean)
+        }))
+    })
+}
