@@ -35,6 +35,11 @@ pub struct LayoutOptions {
     pub treelet_height: u8,
     /// See [`crate::lod::DEFAULT_VOXEL_THRESHOLD`].
     pub voxel_threshold: f32,
+    /// At most one proxy per this many triangles (at least [`MIN_PROXIES`]), given to the
+    /// coarsest LOD nodes first; 0 gives every LOD node a proxy. Proxies are resident (read at
+    /// open), so this bounds what a reader must hold: 64 triangles per 80-byte proxy is
+    /// 1.25 bytes per triangle. Wald et al. kept about one proxy per 300 triangles.
+    pub triangles_per_proxy: u32,
     pub generator: String,
     pub sources: Vec<String>,
     /// Extra `(key, value)` build parameters, appended after the ones the builder records.
@@ -47,9 +52,25 @@ impl Default for LayoutOptions {
             write: WriteOptions::default(),
             treelet_height: 3,
             voxel_threshold: DEFAULT_VOXEL_THRESHOLD,
+            triangles_per_proxy: DEFAULT_TRIANGLES_PER_PROXY,
             generator: concat!("oocfmt-build ", env!("CARGO_PKG_VERSION")).to_string(),
             sources: Vec::new(),
             params: Vec::new(),
+        }
+    }
+}
+
+/// See [`LayoutOptions::triangles_per_proxy`].
+pub const DEFAULT_TRIANGLES_PER_PROXY: u32 = 64;
+/// Small scenes keep proxies for up to this many LOD nodes whatever the ratio.
+pub const MIN_PROXIES: usize = 64;
+
+impl LayoutOptions {
+    /// How many LOD nodes get a proxy in a scene of `triangles` triangles.
+    pub fn max_proxies(&self, triangles: usize) -> usize {
+        match self.triangles_per_proxy {
+            0 => usize::MAX,
+            n => triangles.div_ceil(n as usize).max(MIN_PROXIES),
         }
     }
 }
@@ -168,6 +189,7 @@ pub fn build_blocks(
         opts.treelet_height,
         opts.voxel_threshold,
         block_size,
+        opts.max_proxies(mesh.triangles.len()),
     )?;
     let vertices = VertexTable::new(mesh);
     let tri_plan = triangles::plan_triangles(mesh, tree, &vertices, attrs, block_size)?;
@@ -291,6 +313,10 @@ fn metadata(
     let mut params: Vec<(String, String)> = tree.params().to_vec();
     params.push(("lod_sampling".into(), LOD_SAMPLING.into()));
     params.push(("voxel_threshold".into(), opts.voxel_threshold.to_string()));
+    params.push((
+        "triangles_per_proxy".into(),
+        opts.triangles_per_proxy.to_string(),
+    ));
     params.extend(opts.params.iter().cloned());
     Ok(Metadata {
         scene,

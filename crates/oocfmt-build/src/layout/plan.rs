@@ -92,7 +92,8 @@ pub(crate) struct TreePlan {
     pub blocks: Vec<PlannedBlock>,
     /// LOD data in arena order of the LOD nodes (indexed by [`NodeInfo::lod`]).
     pub lod: Vec<LodData>,
-    /// LOD nodes in file order: position = proxy id.
+    /// The LOD nodes that got a proxy, in file order: position = proxy id. Coarse levels come
+    /// first, so a cap on proxies keeps the ones that stand for the biggest subtrees.
     pub lod_order: Vec<NodeId>,
     pub lod_levels: u32,
 }
@@ -121,6 +122,7 @@ pub(crate) fn plan_tree(
     treelet_height: u8,
     voxel_threshold: f32,
     block_size: usize,
+    max_proxies: usize,
 ) -> Result<TreePlan, LayoutError> {
     let mut plan = TreePlan {
         info: vec![NodeInfo::default(); tree.nodes().len()],
@@ -158,11 +160,13 @@ pub(crate) fn plan_tree(
                     .filter(|&n| plan.info(n).role == Role::Lod)
                     .collect();
                 for n in lods {
-                    if let Some(i) = plan.info.get_mut(n.index()) {
-                        i.proxy = u32::try_from(plan.lod_order.len())
-                            .map_err(|_| LayoutError::TooMany("LOD nodes"))?;
+                    if plan.lod_order.len() < max_proxies {
+                        if let Some(i) = plan.info.get_mut(n.index()) {
+                            i.proxy = u32::try_from(plan.lod_order.len())
+                                .map_err(|_| LayoutError::TooMany("LOD nodes"))?;
+                        }
+                        plan.lod_order.push(n);
                     }
-                    plan.lod_order.push(n);
                     let kids: Vec<usize> = tree
                         .children(n)
                         .into_iter()

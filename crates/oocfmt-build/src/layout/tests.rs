@@ -141,6 +141,8 @@ fn read_back(path: &Path, mesh: &Mesh) -> Res<Found> {
     let mut seen_treelets = HashSet::new();
     let mut depth = 0u32;
     let mut levels = 0u32;
+    let mut max_proxied_level = 0u32;
+    let mut min_unproxied_level = u32::MAX;
     let mut stack: Vec<(u32, u32, u32)> =
         meta.root.iter().map(|r| (r.block, r.treelet, 1)).collect();
     while let Some((b, t, d0)) = stack.pop() {
@@ -183,11 +185,18 @@ fn read_back(path: &Path, mesh: &Mesh) -> Res<Found> {
                     for k in 0..n {
                         stack.push((child_block, child_treelet + k, d + 1));
                     }
+                    // Proxies go to the coarsest LOD nodes first: no level may have a proxy
+                    // finer than a level with a node without one (checked after the walk).
+                    let level = u32::from(block.entry.level);
+                    if proxy == NO_PROXY {
+                        min_unproxied_level = min_unproxied_level.min(level);
+                        continue;
+                    }
+                    max_proxied_level = max_proxied_level.max(level);
                     let p = reader
                         .proxies()
                         .get(proxy as usize)
-                        .filter(|_| proxy != NO_PROXY)
-                        .ok_or("LOD node without a valid proxy")?;
+                        .ok_or("LOD node with an out-of-range proxy")?;
                     if p.node_block != b {
                         return Err(format!(
                             "proxy {proxy} names block {}, its node is in block {b}",
@@ -216,6 +225,11 @@ fn read_back(path: &Path, mesh: &Mesh) -> Res<Found> {
     }
     sums.depth = depth;
     sums.lod_levels = levels;
+    if min_unproxied_level != u32::MAX && max_proxied_level > min_unproxied_level {
+        return Err(format!(
+            "a proxy at level {max_proxied_level}, a LOD node without one at level {min_unproxied_level}"
+        ));
+    }
     if seen_treelets.len() as u64 != sums.treelets {
         return Err(format!(
             "{} of {} treelets reachable",
@@ -321,7 +335,13 @@ fn the_demo_scene_lays_out_correctly_under_every_codec() -> Res<()> {
         let c = found.meta.counts;
         assert!(c.lod_levels >= 3, "{c:?}");
         assert!(c.voxels_single > 0 && c.voxels_six > 0, "{c:?}");
-        assert_eq!(c.proxies, c.lod_nodes);
+        // One proxy per 64 triangles, coarsest LOD nodes first.
+        let cap = opts(4096, codec, 3).max_proxies(mesh.triangles.len()) as u64;
+        assert_eq!(c.proxies, c.lod_nodes.min(cap), "{c:?}");
+        assert!(
+            c.proxies < c.lod_nodes,
+            "the cap must bite on this scene: {c:?}"
+        );
         assert!(
             found.treelet_blocks > c.lod_levels as usize,
             "several treelet blocks on some level"
