@@ -377,6 +377,25 @@ fn convert_refuses_empty_missing_and_unknown_inputs() {
         .code(),
         Some(2)
     );
+    std::fs::write(
+        tmp.path().join("tri.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let over = oocfmt(
+        &[
+            "convert",
+            "tri.obj",
+            "-o",
+            "x.oocf",
+            "--mem-limit",
+            "100",
+            "--quiet",
+        ],
+        tmp.path(),
+    );
+    assert_eq!(over.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&over.stderr).contains("--mem-limit"));
     assert!(!tmp.path().join("x.oocf").exists());
 }
 

@@ -13,11 +13,12 @@ use crate::layout::{build_blocks, write_blocks, LayoutError, LayoutOptions};
 use crate::progress::Progress;
 use crate::report::{peak_memory, BlockStats, ConvertReport, PhaseTime};
 
-/// Bytes of memory the in-core build needs per input triangle: peak RSS over triangle count
-/// of a release `oocfmt convert` of a 994 656-triangle generated Mandelbulb (586 MB, so about
-/// 590 B), rounded up. Used to refuse inputs over `--mem-limit` before the build runs out of
-/// memory.
-pub const BYTES_PER_TRIANGLE_IN_CORE: u64 = 640;
+/// Bytes of memory the in-core build needs per input triangle, for the worst scene measured:
+/// peak RSS over triangle count of release `oocfmt convert` runs was 336–369 B on generated
+/// Mandelbulbs (1M–10M triangles) and 1 114 B on 1M triangles of generated CAD clutter, whose
+/// thin overlapping parts are referenced by many leaves. Used to refuse inputs over
+/// `--mem-limit` before the build runs out of memory.
+pub const BYTES_PER_TRIANGLE_IN_CORE: u64 = 1152;
 
 #[derive(Clone, Debug)]
 pub struct ConvertOptions {
