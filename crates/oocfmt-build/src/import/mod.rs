@@ -119,24 +119,26 @@ impl DropReason {
         if p[0] == p[1] || p[1] == p[2] || p[0] == p[2] {
             return Some(DropReason::ZeroArea);
         }
-        let d = |a: [f32; 3], b: [f32; 3]| {
-            [
-                f64::from(b[0]) - f64::from(a[0]),
-                f64::from(b[1]) - f64::from(a[1]),
-                f64::from(b[2]) - f64::from(a[2]),
-            ]
-        };
-        let (u, v) = (d(p[0], p[1]), d(p[0], p[2]));
-        let n = [
-            u[1] * v[2] - u[2] * v[1],
-            u[2] * v[0] - u[0] * v[2],
-            u[0] * v[1] - u[1] * v[0],
-        ];
-        if n == [0.0; 3] {
+        if edge_cross(p) == [0.0; 3] {
             return Some(DropReason::Collinear);
         }
         None
     }
+}
+
+/// The cross product of a triangle's two edges from its first corner, in f64: twice its area
+/// vector. For corners of similar magnitude the f32 edge differences and their products are
+/// exact in f64, so only a degenerate triangle gives zero.
+pub(crate) fn edge_cross(p: &[[f32; 3]; 3]) -> [f64; 3] {
+    let d = |a: [f32; 3], b: [f32; 3]| {
+        std::array::from_fn::<f64, 3, _>(|k| f64::from(b[k]) - f64::from(a[k]))
+    };
+    let (u, v) = (d(p[0], p[1]), d(p[0], p[2]));
+    [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ]
 }
 
 /// Elements of the input that are not triangles and are skipped on purpose, but counted.

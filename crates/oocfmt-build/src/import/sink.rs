@@ -159,19 +159,7 @@ fn compact_materials(
 }
 
 fn geometric_normal(p: &[[f32; 3]; 3]) -> [f32; 3] {
-    let d = |a: [f32; 3], b: [f32; 3]| {
-        [
-            f64::from(b[0]) - f64::from(a[0]),
-            f64::from(b[1]) - f64::from(a[1]),
-            f64::from(b[2]) - f64::from(a[2]),
-        ]
-    };
-    let (u, v) = (d(p[0], p[1]), d(p[0], p[2]));
-    let n = [
-        u[1] * v[2] - u[2] * v[1],
-        u[2] * v[0] - u[0] * v[2],
-        u[0] * v[1] - u[1] * v[0],
-    ];
+    let n = super::edge_cross(p);
     let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
     if len > 0.0 {
         [

@@ -132,7 +132,14 @@ pub(crate) fn plan_tree(
         return Ok(plan);
     };
     let lod_nodes = classify(tree, root, treelet_height, &mut plan.info);
-    plan.lod = crate::lod::compute(mesh, tree, &lod_nodes, voxel_threshold);
+    let mut proxied = vec![false; tree.nodes().len()];
+    for id in file_order_lod_nodes(tree, root, &plan.info, max_proxies) {
+        if let Some(p) = proxied.get_mut(id.index()) {
+            *p = true;
+        }
+    }
+    let wants = |id: NodeId| proxied.get(id.index()).copied().unwrap_or(false);
+    plan.lod = crate::lod::compute_with(mesh, tree, &lod_nodes, voxel_threshold, &wants);
 
     let mut units = vec![Unit {
         parent: None,
@@ -160,7 +167,7 @@ pub(crate) fn plan_tree(
                     .filter(|&n| plan.info(n).role == Role::Lod)
                     .collect();
                 for n in lods {
-                    if plan.lod_order.len() < max_proxies {
+                    if wants(n) {
                         if let Some(i) = plan.info.get_mut(n.index()) {
                             i.proxy = u32::try_from(plan.lod_order.len())
                                 .map_err(|_| LayoutError::TooMany("LOD nodes"))?;
@@ -187,6 +194,39 @@ pub(crate) fn plan_tree(
     }
     plan.lod_levels = u32::from(level);
     Ok(plan)
+}
+
+/// The first `max` LOD nodes in the order the file stores them: level by level, each level in
+/// its parents' order, each treelet in preorder. Depends on the tree's shape only, so the nodes
+/// that will get a proxy are known before any LOD data is sampled.
+fn file_order_lod_nodes(tree: &KdTree, root: NodeId, info: &[NodeInfo], max: usize) -> Vec<NodeId> {
+    let role = |id: NodeId| info.get(id.index()).map_or(Role::Leaf, |i| i.role);
+    let mut out = Vec::new();
+    let mut roots = vec![root];
+    while !roots.is_empty() && out.len() < max {
+        let mut next = Vec::new();
+        for r in roots {
+            let mut stack = vec![r];
+            while let Some(id) = stack.pop() {
+                match role(id) {
+                    Role::Basic => {
+                        let [l, rr] = tree.children(id);
+                        stack.extend(rr);
+                        stack.extend(l);
+                    }
+                    Role::Lod => {
+                        if out.len() < max {
+                            out.push(id);
+                        }
+                        next.extend(tree.children(id).into_iter().flatten());
+                    }
+                    Role::Leaf => {}
+                }
+            }
+        }
+        roots = next;
+    }
+    out
 }
 
 /// Records every node's cell and role; returns the LOD nodes in arena order. A node at depth

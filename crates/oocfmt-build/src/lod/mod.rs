@@ -61,6 +61,19 @@ impl LodData {
 /// Computes the LOD data of `nodes` (nodes of `tree` over `mesh`), in the same order. Runs in
 /// parallel over the nodes; the result does not depend on the thread count.
 pub fn compute(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId], voxel_threshold: f32) -> Vec<LodData> {
+    compute_with(mesh, tree, nodes, voxel_threshold, &|_| true)
+}
+
+/// Like [`compute`], but casts the twelve diagonal proxy directions only for the nodes
+/// `proxied` names: a node without a proxy never writes them, and they are most of the rays of
+/// a large subtree. The others' diagonal samples stay [`Sample::EMPTY`].
+pub fn compute_with(
+    mesh: &Mesh,
+    tree: &KdTree,
+    nodes: &[NodeId],
+    voxel_threshold: f32,
+    proxied: &(dyn Fn(NodeId) -> bool + Sync),
+) -> Vec<LodData> {
     let cells = cells_of(tree, nodes);
     // Every LOD level sums the areas of (nearly) every triangle once more.
     let areas: Vec<f64> = (0..mesh.triangles.len())
@@ -96,6 +109,7 @@ pub fn compute(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId], voxel_threshold: f3
                     id,
                     cell(id),
                     voxel_threshold,
+                    proxied(id),
                 )
             },
         )
@@ -215,6 +229,7 @@ fn node_lod<'a>(
     id: NodeId,
     cell: Bounds,
     threshold: f32,
+    diagonals: bool,
 ) -> LodData {
     let tris = collector.collect(tree, id);
     let area: f64 = tris.iter().map(|&t| area(t)).sum();
@@ -240,6 +255,7 @@ fn node_lod<'a>(
         cell,
         triangles: tris.len(),
         threshold,
+        diagonals,
     }
     .run();
     LodData {

@@ -95,6 +95,8 @@ pub(super) struct NodeSampler<'a, 'b> {
     /// Distinct triangles in the subtree: sets the ray counts.
     pub triangles: usize,
     pub threshold: f32,
+    /// Whether to sample the twelve diagonal proxy directions (only proxied nodes need them).
+    pub diagonals: bool,
 }
 
 /// The voxel (`None` when no ray hit anything) and the 18 proxy samples of a node.
@@ -146,7 +148,13 @@ impl NodeSampler<'_, '_> {
             *p = acc.facing_sample().unwrap_or(Sample::EMPTY);
         }
         let rays = (self.triangles / TRIANGLES_PER_DIAGONAL_RAY).min(DIAGONAL_RAYS_MAX);
-        for (p, d) in proxy.iter_mut().zip(PROXY_DIRECTIONS).skip(6) {
+        let diagonals = if self.diagonals { 12 } else { 0 };
+        for (p, d) in proxy
+            .iter_mut()
+            .zip(PROXY_DIRECTIONS)
+            .skip(6)
+            .take(diagonals)
+        {
             let dir = normalise(d.map(f64::from));
             *p = if rays < DIAGONAL_RAYS_MIN {
                 blend(&faces, &areas, dir)
