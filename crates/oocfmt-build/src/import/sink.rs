@@ -1,7 +1,7 @@
 //! An in-memory sink: triangles become a de-duplicated [`Mesh`], degenerate ones are dropped
 //! and counted (or refused under `strict`).
 
-use std::collections::{HashMap, HashSet};
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 use oocfmt::metadata::Material;
 
@@ -129,7 +129,7 @@ fn compact_materials(
     used: &[Option<u32>],
     table: Vec<Material>,
 ) -> Result<(Vec<u16>, Vec<Material>), ImportError> {
-    let mut remap: HashMap<Option<u32>, u16> = HashMap::new();
+    let mut remap: HashMap<Option<u32>, u16> = HashMap::default();
     let mut out = Vec::new();
     let mut indices = Vec::with_capacity(used.len());
     for m in used {
