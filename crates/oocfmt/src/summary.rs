@@ -8,6 +8,7 @@ use crate::directory::{BlockEntry, BlockKind};
 use crate::error::{bad, Code, Result};
 use crate::header::{COMPAT_LOD_VOXELS, COMPAT_PROXIES};
 use crate::metadata::Metadata;
+use crate::records::triangle::ATTR_MATERIALS;
 use crate::records::{Node, ProxyRecord, TreeletBlock, TreeletSummary, TriangleBlock};
 use crate::Reader;
 
@@ -52,9 +53,9 @@ pub fn survey_block(e: &BlockEntry, raw: &[u8], attrs: Option<u16>) -> Result<Bl
             let b = TriangleBlock::parse(raw, attrs)?;
             b.check_contents()?;
             let mut max_material = None;
-            for i in 0..b.triangle_count() {
-                if let Some(m) = b.triangle(i)?.material {
-                    max_material = max_material.max(Some(m));
+            if b.attributes() & ATTR_MATERIALS != 0 {
+                for i in 0..b.triangle_count() {
+                    max_material = max_material.max(b.triangle(i)?.material);
                 }
             }
             BlockFacts::Triangle {
