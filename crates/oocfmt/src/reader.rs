@@ -62,22 +62,22 @@ pub struct Block {
 
 impl Block {
     pub fn treelets(&self) -> Result<TreeletBlock<'_>> {
-        self.expect(BlockKind::Treelet)?;
+        self.check_kind(BlockKind::Treelet)?;
         TreeletBlock::parse(&self.data).map_err(|e| e.in_block(self.id))
     }
 
     pub fn triangles(&self, attrs: u16) -> Result<TriangleBlock<'_>> {
-        self.expect(BlockKind::Triangle)?;
+        self.check_kind(BlockKind::Triangle)?;
         TriangleBlock::parse(&self.data, Some(attrs)).map_err(|e| e.in_block(self.id))
     }
 
     pub fn proxies(&self) -> Result<Vec<ProxyRecord>> {
-        self.expect(BlockKind::Proxy)?;
+        self.check_kind(BlockKind::Proxy)?;
         ProxyRecord::decode_block(&self.data, self.entry.item_count as usize)
             .map_err(|e| e.in_block(self.id))
     }
 
-    fn expect(&self, kind: BlockKind) -> Result<()> {
+    fn check_kind(&self, kind: BlockKind) -> Result<()> {
         if self.entry.kind != kind {
             return Err(Error::malformed(
                 Code::TreeReference,

@@ -40,7 +40,7 @@ struct Slots {
 impl Slots {
     /// Marks treelet `r` (of a block of `count` treelets) as pending; false if it was already
     /// pending or walked, i.e. reached twice.
-    fn expect(&mut self, r: TreeletRef, count: u32, inh: Inherit) -> bool {
+    fn await_treelet(&mut self, r: TreeletRef, count: u32, inh: Inherit) -> bool {
         let slots = self
             .by_block
             .entry(r.block)
@@ -113,7 +113,7 @@ pub(super) fn check(
                     meta.scene.bounds_max.map(f64::from),
                 ];
                 let count = w.treelet_count(root.block);
-                w.slots.expect(
+                w.slots.await_treelet(
                     root,
                     count,
                     Inherit {
@@ -371,7 +371,7 @@ impl Walk<'_> {
             };
             if !self
                 .slots
-                .expect(key, self.treelet_count(child_block), inherit)
+                .await_treelet(key, self.treelet_count(child_block), inherit)
             {
                 v.note_code(Code::TreeShared, format!("LOD node at {pos}: treelet {index} of block {child_block} is reached twice"), Some(id));
             }
