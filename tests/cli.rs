@@ -58,6 +58,24 @@ fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
+/// Runs `oocfmt convert ARGS --quiet --report-json report.json` in `dir`, asserts success and
+/// returns the report.
+fn convert_ok(dir: &Path, args: &[&str]) -> serde_json::Value {
+    let mut all = vec!["convert"];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&["--quiet", "--report-json", "report.json"]);
+    let o = oocfmt(&all, dir);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{args:?}: {}{}",
+        stdout(&o),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let bytes = std::fs::read(dir.join("report.json")).unwrap_or_default();
+    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("{args:?}: report: {e}"))
+}
+
 #[test]
 fn the_spec_vectors_exist() {
     let v = vectors();
@@ -246,28 +264,7 @@ fn scene_dir() -> tempfile::TempDir {
 #[test]
 fn convert_obj_reports_drops_verifies_and_round_trips_through_export() {
     let tmp = scene_dir();
-    let o = oocfmt(
-        &[
-            "convert",
-            "scene.obj",
-            "-o",
-            "scene.oocf",
-            "--quiet",
-            "--report-json",
-            "report.json",
-        ],
-        tmp.path(),
-    );
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}{}",
-        stdout(&o),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(tmp.path().join("report.json")).unwrap_or_default())
-            .unwrap_or_default();
+    let report = convert_ok(tmp.path(), &["scene.obj", "-o", "scene.oocf"]);
     // 2 floor + 4 panel triangles kept; one zero-area and one NaN triangle dropped.
     assert_eq!(report["import"]["triangles_in"], 8, "{report}");
     assert_eq!(report["import"]["triangles_out"], 6, "{report}");
@@ -406,29 +403,7 @@ const QUAD_GLTF: &str = r#"{"asset": {"version": "2.0"}, "scene": 0, "scenes": [
 fn convert_gltf_and_obj_together_into_one_scene() {
     let tmp = scene_dir();
     std::fs::write(tmp.path().join("quad.gltf"), QUAD_GLTF).unwrap_or_else(|e| panic!("{e}"));
-    let o = oocfmt(
-        &[
-            "convert",
-            "scene.obj",
-            "quad.gltf",
-            "-o",
-            "both.oocf",
-            "--quiet",
-            "--report-json",
-            "r.json",
-        ],
-        tmp.path(),
-    );
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}{}",
-        stdout(&o),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(tmp.path().join("r.json")).unwrap_or_default())
-            .unwrap_or_default();
+    let report = convert_ok(tmp.path(), &["scene.obj", "quad.gltf", "-o", "both.oocf"]);
     assert_eq!(report["triangles_stored"], 8, "{report}");
     assert_eq!(
         report["import"]["files"].as_array().map(Vec::len),
@@ -525,29 +500,7 @@ fn generated_scenes_convert_verify_and_export_without_loss() {
             String::from_utf8_lossy(&g.stderr)
         );
         let oocf = format!("{scene}.oocf");
-        let c = oocfmt(
-            &[
-                "convert",
-                &obj,
-                "-o",
-                &oocf,
-                "--quiet",
-                "--max-leaf",
-                "4",
-                "--report-json",
-                "r.json",
-            ],
-            tmp.path(),
-        );
-        assert_eq!(
-            c.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&c.stderr)
-        );
-        let report: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(tmp.path().join("r.json")).unwrap_or_default())
-                .unwrap_or_default();
+        let report = convert_ok(tmp.path(), &[&obj, "-o", &oocf, "--max-leaf", "4"]);
         assert_eq!(
             oocfmt(&["verify", "--deep", &oocf], tmp.path())
                 .status

@@ -319,16 +319,7 @@ impl<'a> Builder<'a> {
         } else {
             count(refs)
         };
-        let dims: [f64; 3] =
-            std::array::from_fn(|a| f64::from(cell.max[a]) - f64::from(cell.min[a]));
-        let parent = area(dims);
-        if !(parent > 0.0 && parent.is_finite()) {
-            return None;
-        }
-        let (ct, ci) = (
-            f64::from(self.opts.traversal_cost),
-            f64::from(self.opts.intersection_cost),
-        );
+        let model = CostModel::new(cell, self.opts)?;
         let n = refs.len() as f64;
         let mut best: Option<Plane> = None;
         for a in 0..3 {
@@ -347,18 +338,7 @@ impl<'a> Builder<'a> {
                 if !(occupied.min[a] < split && split < occupied.max[a]) {
                     continue;
                 }
-                let mut l = dims;
-                l[a] = f64::from(split) - f64::from(cell.min[a]);
-                let mut r = dims;
-                r[a] = f64::from(cell.max[a]) - f64::from(split);
-                let cost = ct + ci * (area(l) * left + area(r) * (n - ended)) / parent;
-                if best.is_none_or(|b| cost < b.cost) {
-                    best = Some(Plane {
-                        axis: a,
-                        split,
-                        cost,
-                    });
-                }
+                model.offer(&mut best, a, split, left, n - ended);
             }
         }
         best
@@ -368,16 +348,7 @@ impl<'a> Builder<'a> {
     /// exact counts of [`Builder::partition`] (a reference lying in the plane counts on both
     /// sides).
     fn best_exact(&self, refs: &[Ref], cell: &Bounds, occupied: &Bounds) -> Option<Plane> {
-        let dims: [f64; 3] =
-            std::array::from_fn(|a| f64::from(cell.max[a]) - f64::from(cell.min[a]));
-        let parent = area(dims);
-        if !(parent > 0.0 && parent.is_finite()) {
-            return None;
-        }
-        let (ct, ci) = (
-            f64::from(self.opts.traversal_cost),
-            f64::from(self.opts.intersection_cost),
-        );
+        let model = CostModel::new(cell, self.opts)?;
         let mut best: Option<Plane> = None;
         let n = refs.len().min(EXACT_SAH_MAX);
         let refs = refs.get(..n).unwrap_or(refs);
@@ -433,18 +404,7 @@ impl<'a> Builder<'a> {
                 }
                 let in_plane = flat_le - flat_lt;
                 let (left, right) = (lt + in_plane, n - ended + in_plane);
-                let mut l = dims;
-                l[a] = f64::from(split) - f64::from(cell.min[a]);
-                let mut r = dims;
-                r[a] = f64::from(cell.max[a]) - f64::from(split);
-                let cost = ct + ci * (area(l) * left as f64 + area(r) * right as f64) / parent;
-                if best.is_none_or(|b| cost < b.cost) {
-                    best = Some(Plane {
-                        axis: a,
-                        split,
-                        cost,
-                    });
-                }
+                model.offer(&mut best, a, split, left as f64, right as f64);
             }
         }
         best
@@ -676,6 +636,50 @@ fn union(mut a: Bounds, b: Bounds) -> Bounds {
         a.extend(b.max);
     }
     a
+}
+
+/// The SAH cost of the planes of one cell, shared by the binned and the exact search.
+struct CostModel {
+    min: [f32; 3],
+    max: [f32; 3],
+    dims: [f64; 3],
+    parent: f64,
+    traversal: f64,
+    intersection: f64,
+}
+
+impl CostModel {
+    /// None for a cell without a finite positive surface area (no plane can be judged).
+    fn new(cell: &Bounds, opts: &KdBuildOptions) -> Option<CostModel> {
+        let dims: [f64; 3] =
+            std::array::from_fn(|a| f64::from(cell.max[a]) - f64::from(cell.min[a]));
+        let parent = area(dims);
+        (parent > 0.0 && parent.is_finite()).then_some(CostModel {
+            min: cell.min,
+            max: cell.max,
+            dims,
+            parent,
+            traversal: f64::from(opts.traversal_cost),
+            intersection: f64::from(opts.intersection_cost),
+        })
+    }
+
+    /// Keeps the plane at `split` on axis `a`, with `left` and `right` references, in `best`
+    /// when it is the cheapest so far.
+    fn offer(&self, best: &mut Option<Plane>, a: usize, split: f32, left: f64, right: f64) {
+        let (mut l, mut r) = (self.dims, self.dims);
+        l[a] = f64::from(split) - f64::from(self.min[a]);
+        r[a] = f64::from(self.max[a]) - f64::from(split);
+        let cost =
+            self.traversal + self.intersection * (area(l) * left + area(r) * right) / self.parent;
+        if best.is_none_or(|b| cost < b.cost) {
+            *best = Some(Plane {
+                axis: a,
+                split,
+                cost,
+            });
+        }
+    }
 }
 
 /// Surface area of a box with these extents.
