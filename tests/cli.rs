@@ -391,8 +391,12 @@ fn convert_refuses_empty_missing_and_unknown_inputs() {
         ],
         tmp.path(),
     );
-    assert_eq!(over.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&over.stderr).contains("--mem-limit"));
+    assert_eq!(over.status.code(), Some(2));
+    let msg = String::from_utf8_lossy(&over.stderr);
+    assert!(
+        msg.contains("--mem-limit") && msg.contains("minimum"),
+        "{msg}"
+    );
     assert!(!tmp.path().join("x.oocf").exists());
 }
 
@@ -532,5 +536,55 @@ fn generated_scenes_convert_verify_and_export_without_loss() {
                 "{scene}: the exported triangles differ from the input"
             );
         }
+    }
+}
+
+#[test]
+fn a_scene_over_the_memory_limit_converts_out_of_core_without_loss() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    for (scene, tris) in [("mandelbulb", "40000"), ("cad", "30000")] {
+        let obj = format!("{scene}.obj");
+        let g = oocfmt(
+            &["gen", scene, "--tris", tris, "-o", &obj, "--quiet"],
+            tmp.path(),
+        );
+        assert_eq!(
+            g.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&g.stderr)
+        );
+        let mut exported = Vec::new();
+        for (name, limit) in [("in-core", "8G"), ("chunked", "16M")] {
+            let oocf = format!("{scene}-{name}.oocf");
+            let report = convert_ok(tmp.path(), &[&obj, "-o", &oocf, "--mem-limit", limit]);
+            let chunks = report["out_of_core"]["chunks"].as_u64();
+            if name == "in-core" {
+                assert_eq!(chunks, None, "{scene}: {report}");
+            } else {
+                assert!(chunks.is_some_and(|c| c >= 2), "{scene}: {report}");
+            }
+            let v = oocfmt(&["verify", "--deep", &oocf], tmp.path());
+            assert_eq!(v.status.code(), Some(0), "{scene} {name}: {}", stdout(&v));
+            let back = format!("{scene}-{name}.obj");
+            let e = oocfmt(&["export", &oocf, "-o", &back, "--quiet"], tmp.path());
+            assert_eq!(e.status.code(), Some(0));
+            exported.push(obj_triangles(&tmp.path().join(&back)));
+        }
+        assert!(!exported[0].is_empty());
+        assert_eq!(
+            exported[0], exported[1],
+            "{scene}: the chunked build lost or added triangles"
+        );
+        // Nothing of the spill files is left behind.
+        let leftovers: Vec<String> = std::fs::read_dir(tmp.path())
+            .map(|d| {
+                d.filter_map(|e| e.ok())
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.starts_with(".oocfmt-spill"))
+                    .collect()
+            })
+            .unwrap_or_default();
+        assert!(leftovers.is_empty(), "{leftovers:?}");
     }
 }

@@ -7,18 +7,24 @@ use std::time::Instant;
 
 use oocfmt::{BlockKind, ReadOptions, Reader};
 
-use crate::import::{self, ImportError, MeshSink, TriangleSink};
+use crate::import::{self, ImportError, TriangleSink};
 use crate::kdtree::{self, KdBuildOptions, KdError};
 use crate::layout::{build_blocks, write_blocks, LayoutError, LayoutOptions};
+use crate::ooc::soup::SoupSink;
+use crate::ooc::{self, OocError};
 use crate::progress::Progress;
 use crate::report::{peak_memory, BlockStats, ConvertReport, PhaseTime};
 
 /// Bytes of memory the in-core build needs per input triangle, for the worst scene measured:
 /// peak RSS over triangle count of release `oocfmt convert` runs was 336–369 B on generated
 /// Mandelbulbs (1M–10M triangles) and 1 114 B on 1M triangles of generated CAD clutter, whose
-/// thin overlapping parts are referenced by many leaves. Used to refuse inputs over
-/// `--mem-limit` before the build runs out of memory.
+/// thin overlapping parts are referenced by many leaves. A scene over `--mem-limit` at this
+/// rate is built out of core, in chunks of at most `--mem-limit` / this many triangles.
 pub const BYTES_PER_TRIANGLE_IN_CORE: u64 = 1152;
+
+/// The smallest `--mem-limit` the CLI accepts: the process itself, the importers' vertex
+/// arrays and a useful chunk need about this much.
+pub const MIN_MEM_LIMIT: u64 = 16 << 20;
 
 #[derive(Clone, Debug)]
 pub struct ConvertOptions {
@@ -41,13 +47,14 @@ pub enum ConvertError {
     Layout(#[from] LayoutError),
     #[error(transparent)]
     Format(#[from] oocfmt::Error),
+    #[error(transparent)]
+    OutOfCore(#[from] OocError),
     #[error("{0}: unknown input format (expected .obj, .gltf or .glb)")]
     UnknownFormat(String),
-    #[error("{triangles} triangles need about {needed} bytes to build in memory, over --mem-limit {limit} (the out-of-core build is not available yet; raise the limit or split the input)")]
-    MemoryLimit {
-        triangles: u64,
-        needed: u64,
-        limit: u64,
+    #[error("cannot make a folder for spill files next to {path}: {source}")]
+    SpillDir {
+        path: String,
+        source: std::io::Error,
     },
 }
 
@@ -99,49 +106,73 @@ pub fn convert(
         list: Vec::new(),
         at: start,
     };
-    let mut sink = MeshSink::new(opts.strict);
+    // Spill files live next to the output: the same disk, and room for a model's worth.
+    let parent = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let spill = tempfile::Builder::new()
+        .prefix(".oocfmt-spill-")
+        .tempdir_in(parent)
+        .map_err(|source| ConvertError::SpillDir {
+            path: output.display().to_string(),
+            source,
+        })?;
+    let mut sink = SoupSink::create(&spill.path().join("import.soup"), opts.strict)?;
     progress.phase("import", Some(inputs.len() as u64));
     for (i, path) in inputs.iter().enumerate() {
         import_one(path, &mut sink, opts)?;
         progress.advance(i as u64 + 1);
     }
     progress.finish_phase();
-    let (mesh, import_report) = sink.finish()?;
+    let soup = sink.finish()?;
     phases.done("import");
-    let triangles = mesh.triangles.len() as u64;
-    let needed = triangles.saturating_mul(BYTES_PER_TRIANGLE_IN_CORE);
-    if needed > opts.mem_limit {
-        return Err(ConvertError::MemoryLimit {
-            triangles,
-            needed,
-            limit: opts.mem_limit,
-        });
-    }
-
-    progress.phase("kd-tree", None);
-    let tree = kdtree::build(&mesh, &opts.kd)?;
-    progress.finish_phase();
-    phases.done("kd-tree");
-
-    progress.phase("LOD + layout", None);
+    let import_report = soup.report.clone();
+    let chunk_triangles = opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE;
     let mut layout = opts.layout.clone();
     layout.sources = inputs.iter().map(|p| p.display().to_string()).collect();
-    let container = build_blocks(&mesh, &tree, &layout)?;
-    progress.finish_phase();
-    phases.done("lod+layout");
-    drop(tree);
-    drop(mesh);
 
-    progress.phase("write", Some(container.blocks.len() as u64));
-    let written = write_blocks(output, &container, layout.write, &mut |n| {
-        progress.advance(n)
-    })?;
-    progress.finish_phase();
-    phases.done("write");
-    drop(container);
+    let (written, out_of_core) = if soup.count <= chunk_triangles {
+        let mesh = soup.load_mesh()?;
+        std::fs::remove_file(&soup.path).map_err(|e| OocError::spill(&soup.path, e))?;
+        phases.done("load");
+        progress.phase("kd-tree", None);
+        let tree = kdtree::build(&mesh, &opts.kd)?;
+        progress.finish_phase();
+        phases.done("kd-tree");
+
+        progress.phase("LOD + layout", None);
+        let container = build_blocks(&mesh, &tree, &layout)?;
+        progress.finish_phase();
+        phases.done("lod+layout");
+        drop(tree);
+        drop(mesh);
+
+        progress.phase("write", Some(container.blocks.len() as u64));
+        let written = write_blocks(output, &container, layout.write, &mut |n| {
+            progress.advance(n)
+        })?;
+        progress.finish_phase();
+        phases.done("write");
+        (written, None)
+    } else {
+        let (written, stats) = ooc::build(
+            soup,
+            output,
+            &opts.kd,
+            &layout,
+            chunk_triangles,
+            spill.path(),
+            progress,
+        )?;
+        phases.done("out-of-core build");
+        (written, Some(stats))
+    };
+    drop(spill);
 
     let mut report = describe(output, written.identity)?;
     report.import = import_report;
+    report.out_of_core = out_of_core;
     report.phases = phases.list;
     report.seconds = start.elapsed().as_secs_f64();
     report.triangles_per_second = report.import.triangles_in as f64 / report.seconds.max(1e-9);

@@ -13,6 +13,7 @@ pub mod kdtree;
 pub mod layout;
 pub mod lod;
 pub mod mesh;
+pub mod ooc;
 pub mod progress;
 pub mod raycast;
 pub mod report;

@@ -41,6 +41,8 @@ pub struct ConvertReport {
     /// Peak resident memory of the process, where the platform reports it.
     pub peak_memory_bytes: Option<u64>,
     pub mem_limit_bytes: u64,
+    /// Present when the scene was over the memory limit and built in chunks.
+    pub out_of_core: Option<crate::ooc::OocStats>,
 }
 
 /// Peak resident set size of this process (Linux: VmHWM), or None elsewhere.

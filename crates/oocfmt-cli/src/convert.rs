@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use oocfmt::{Codec, WriteOptions};
-use oocfmt_build::convert::{convert, ConvertError, ConvertOptions};
+use oocfmt_build::convert::{convert, ConvertError, ConvertOptions, MIN_MEM_LIMIT};
 use oocfmt_build::import::gltf::GltfOptions;
 use oocfmt_build::import::obj::ObjOptions;
 use oocfmt_build::import::Skipped;
@@ -37,8 +37,9 @@ pub struct Args {
     /// Refuse the first bad triangle (NaN, out-of-range index, zero area) instead of dropping it
     #[arg(long)]
     pub strict: bool,
-    /// Memory the build may use, e.g. 2G, 512M (default: half the physical memory)
-    #[arg(long, value_parser = parse_size)]
+    /// Memory the build may use, e.g. 2G, 512M, at least 16M (default: half the physical
+    /// memory). A larger scene is built out of core, in chunks that fit
+    #[arg(long, value_parser = parse_mem_limit)]
     pub mem_limit: Option<u64>,
     /// glTF: import every scene, not only the default one
     #[arg(long)]
@@ -52,6 +53,18 @@ pub struct Args {
     /// No progress bars
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// A `--mem-limit`: a size of at least [`MIN_MEM_LIMIT`].
+fn parse_mem_limit(s: &str) -> Result<u64, String> {
+    let v = parse_size(s)?;
+    if v < MIN_MEM_LIMIT {
+        return Err(format!(
+            "`{s}`: below the minimum of {}M (the importers and one chunk of the out-of-core build need that much)",
+            MIN_MEM_LIMIT >> 20
+        ));
+    }
+    Ok(v)
 }
 
 /// Parses sizes such as `512M`, `2G`, `1.5G` or a plain byte count.
@@ -172,6 +185,18 @@ fn render(r: &ConvertReport) -> String {
             o,
             "blocks     {kind:<9} {:>7} blocks, {:>12} raw, {:>12} stored bytes",
             b.blocks, b.raw_bytes, b.stored_bytes
+        );
+    }
+    if let Some(c) = &r.out_of_core {
+        let _ = writeln!(
+            o,
+            "out of core {} chunks of at most {} triangles (largest {}, {} over), {} copies of straddling triangles, {} LOD nodes above the chunks",
+            c.chunks,
+            c.chunk_budget_triangles,
+            c.largest_chunk_triangles,
+            c.oversized_chunks,
+            c.split_copies,
+            c.top_lod_nodes
         );
     }
     let phases: Vec<String> = r

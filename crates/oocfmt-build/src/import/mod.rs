@@ -11,7 +11,8 @@ use std::fmt;
 
 use serde::Serialize;
 
-pub use sink::MeshSink;
+pub(crate) use sink::compact_materials;
+pub use sink::{MeshSink, PartSchema};
 
 use oocfmt::metadata::Material;
 

@@ -26,9 +26,21 @@ struct Vert {
     colour: Option<[u8; 4]>,
 }
 
+/// What a mesh holding part of a scene must store because the whole scene has it, so every
+/// part's triangle blocks carry the same attributes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PartSchema {
+    pub normals: bool,
+    pub colours: bool,
+    /// The scene's material table; triangles then give indices into it as their material, and
+    /// the table is kept as it is instead of being compacted to what the part uses.
+    pub materials: Option<Vec<Material>>,
+}
+
 #[derive(Default)]
 pub struct MeshSink {
     strict: bool,
+    part: Option<PartSchema>,
     verts: Vec<Vert>,
     index: HashMap<[u32; 8], u32>,
     triangles: Vec<[u32; 3]>,
@@ -43,6 +55,14 @@ impl MeshSink {
     pub fn new(strict: bool) -> MeshSink {
         MeshSink {
             strict,
+            ..MeshSink::default()
+        }
+    }
+
+    /// A sink for part of a scene whose attributes are fixed by `schema`.
+    pub fn for_part(schema: PartSchema) -> MeshSink {
+        MeshSink {
+            part: Some(schema),
             ..MeshSink::default()
         }
     }
@@ -91,8 +111,9 @@ impl MeshSink {
                 dropped: report.dropped_total(),
             });
         }
-        let any_normals = self.verts.iter().any(|v| v.normal.is_some());
-        let any_colours = self.verts.iter().any(|v| v.colour.is_some());
+        let part = self.part.unwrap_or_default();
+        let any_normals = part.normals || self.verts.iter().any(|v| v.normal.is_some());
+        let any_colours = part.colours || self.verts.iter().any(|v| v.colour.is_some());
         let any_materials = self.materials.iter().any(Option::is_some);
         let mut mesh = Mesh::new(
             self.verts.iter().map(|v| v.position).collect(),
@@ -114,7 +135,15 @@ impl MeshSink {
                     .collect(),
             );
         }
-        if any_materials {
+        if let Some(table) = part.materials {
+            let materials = self
+                .materials
+                .iter()
+                .map(|m| m.and_then(|k| u16::try_from(k).ok()).unwrap_or(0))
+                .collect();
+            mesh.materials = Some(materials);
+            mesh.material_table = table;
+        } else if any_materials {
             let (materials, table) = compact_materials(&self.materials, self.table)?;
             mesh.materials = Some(materials);
             mesh.material_table = table;
@@ -125,7 +154,7 @@ impl MeshSink {
 
 /// Keeps the materials that triangles use, in order of first use, plus a default for
 /// triangles without one; indices must fit the format's 16 bits.
-fn compact_materials(
+pub(crate) fn compact_materials(
     used: &[Option<u32>],
     table: Vec<Material>,
 ) -> Result<(Vec<u16>, Vec<Material>), ImportError> {

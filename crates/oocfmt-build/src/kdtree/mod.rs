@@ -6,6 +6,8 @@
 
 mod sah;
 
+pub(crate) use sah::clip_triangle;
+
 use crate::mesh::{Bounds, Mesh, MeshError};
 
 /// The spec's limit on triangles per leaf (a 12-bit field).
@@ -214,6 +216,30 @@ impl KdTree {
         };
         tree.validate(mesh)?;
         Ok(tree)
+    }
+
+    /// A tree without nodes.
+    pub fn empty() -> KdTree {
+        KdTree {
+            nodes: Vec::new(),
+            root: None,
+            bounds: Bounds::EMPTY,
+            max_leaf_triangles: 0,
+            params: Vec::new(),
+        }
+    }
+
+    /// A tree assembled from parts of other trees, checked for shape only: its leaves' triangle
+    /// lists may be empty, because their triangles are laid out elsewhere (the top of an
+    /// out-of-core build).
+    pub(crate) fn skeleton(nodes: Vec<KdNode>, root: NodeId, bounds: Bounds) -> KdTree {
+        KdTree {
+            nodes,
+            root: Some(root),
+            bounds,
+            max_leaf_triangles: 0,
+            params: Vec::new(),
+        }
     }
 
     pub fn nodes(&self) -> &[KdNode] {

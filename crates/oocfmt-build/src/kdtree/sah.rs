@@ -537,7 +537,7 @@ const MAX_CLIPPED: usize = 9;
 /// planes), rounded outwards to f32 and kept inside the box. A triangle that only touches the
 /// box, or vanishes under rounding, gets the part of its own box inside `to` instead: never an
 /// empty box, so a reference is never lost.
-fn clip_triangle(c: [[f32; 3]; 3], to: &Bounds) -> Bounds {
+pub(crate) fn clip_triangle(c: [[f32; 3]; 3], to: &Bounds) -> Bounds {
     let mut poly = [[0.0f64; 3]; MAX_CLIPPED];
     for (slot, p) in poly.iter_mut().zip(&c) {
         *slot = p.map(f64::from);

@@ -5,11 +5,11 @@
 //! node names its children's block, a leaf its triangle block). Block order in the file:
 //! treelet blocks by level, then triangle blocks, then proxy blocks.
 
-mod plan;
+pub(crate) mod plan;
 #[cfg(test)]
 pub(crate) mod tests;
-mod treelets;
-mod triangles;
+pub(crate) mod treelets;
+pub(crate) mod triangles;
 
 use std::path::Path;
 

@@ -2,6 +2,8 @@
 //! which treelet block (and index in it) every treelet gets — all before anything is encoded,
 //! because LOD nodes must name their children's block.
 
+use std::collections::BTreeMap;
+
 use oocfmt::records::{TreeletBlockWriter, NODE_BASIC_LEN, NODE_LEAF_LEN, NODE_LOD_LEN, NO_PROXY};
 
 use super::LayoutError;
@@ -96,6 +98,8 @@ pub(crate) struct TreePlan {
     /// first, so a cap on proxies keeps the ones that stand for the biggest subtrees.
     pub lod_order: Vec<NodeId>,
     pub lod_levels: u32,
+    /// The root's treelet, when [`PlanSpec::detach_root`] kept it out of the blocks.
+    pub detached: Option<usize>,
 }
 
 impl TreePlan {
@@ -114,8 +118,39 @@ struct Unit {
     treelets: Vec<usize>,
 }
 
-/// Plans the treelet blocks of `tree`. `voxel_threshold` feeds the LOD estimate, whose voxel
-/// sizes (one or six samples) the block packing needs.
+/// Where a tree sits in the scene and what its layout is given instead of computing: the same
+/// planner lays out a whole in-core tree, an out-of-core chunk, and the top above the chunks.
+pub(crate) struct PlanSpec<'a> {
+    pub treelet_height: u8,
+    pub block_size: usize,
+    /// At most this many LOD nodes get a proxy, the coarsest first.
+    pub max_proxies: usize,
+    /// Node level of the tree's root in the scene (0: the tree is the scene's).
+    pub depth_offset: u32,
+    /// The id this plan gives its first proxy.
+    pub proxy_base: u32,
+    /// Plan the root's treelet but pack it elsewhere (an out-of-core chunk's top treelet goes
+    /// to the top of the scene): packing starts with the children of its LOD nodes, which get
+    /// no proxy id here.
+    pub detach_root: bool,
+    /// The LOD level of the first blocks packed.
+    pub first_level: u16,
+    pub lod: LodSource<'a>,
+    /// LOD nodes whose child treelets live elsewhere, with their (child block, first child
+    /// treelet): nothing below them is planned.
+    pub external: &'a BTreeMap<NodeId, (u32, u32)>,
+}
+
+/// Where LOD nodes' data comes from.
+pub(crate) enum LodSource<'a> {
+    /// Ray-sampled against the tree's own subtrees.
+    Sample { mesh: &'a Mesh, threshold: f32 },
+    /// Computed elsewhere, by node.
+    Given(&'a dyn Fn(NodeId) -> Option<LodData>),
+}
+
+/// Plans the treelet blocks of `tree`, the scene's whole tree over `mesh`. `voxel_threshold`
+/// feeds the LOD estimate, whose voxel sizes (one or six samples) the block packing needs.
 pub(crate) fn plan_tree(
     mesh: &Mesh,
     tree: &KdTree,
@@ -124,6 +159,27 @@ pub(crate) fn plan_tree(
     block_size: usize,
     max_proxies: usize,
 ) -> Result<TreePlan, LayoutError> {
+    plan_tree_with(
+        tree,
+        &PlanSpec {
+            treelet_height,
+            block_size,
+            max_proxies,
+            depth_offset: 0,
+            proxy_base: 0,
+            detach_root: false,
+            first_level: 0,
+            lod: LodSource::Sample {
+                mesh,
+                threshold: voxel_threshold,
+            },
+            external: &BTreeMap::new(),
+        },
+    )
+}
+
+/// Plans the treelet blocks of `tree` as `spec` places it.
+pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan, LayoutError> {
     let mut plan = TreePlan {
         info: vec![NodeInfo::default(); tree.nodes().len()],
         ..TreePlan::default()
@@ -131,24 +187,44 @@ pub(crate) fn plan_tree(
     let Some(root) = tree.root() else {
         return Ok(plan);
     };
-    let lod_nodes = classify(tree, root, treelet_height, &mut plan.info);
+    let lod_nodes = classify(
+        tree,
+        root,
+        spec.treelet_height,
+        spec.depth_offset,
+        &mut plan.info,
+    );
     let mut proxied = vec![false; tree.nodes().len()];
-    for id in file_order_lod_nodes(tree, root, &plan.info, max_proxies) {
+    for id in file_order_lod_nodes(tree, root, &plan.info, spec.max_proxies) {
         if let Some(p) = proxied.get_mut(id.index()) {
             *p = true;
         }
     }
     let wants = |id: NodeId| proxied.get(id.index()).copied().unwrap_or(false);
-    plan.lod = crate::lod::compute_with(mesh, tree, &lod_nodes, voxel_threshold, &wants);
+    plan.lod = match &spec.lod {
+        LodSource::Sample { mesh, threshold } => {
+            crate::lod::compute_with(mesh, tree, &lod_nodes, *threshold, &wants)
+        }
+        LodSource::Given(given) => lod_nodes
+            .iter()
+            .map(|&n| given(n).ok_or(LayoutError::Internal("a LOD node has no LOD data")))
+            .collect::<Result<_, _>>()?,
+    };
 
-    let mut units = vec![Unit {
-        parent: None,
-        treelets: vec![make_treelet(tree, &mut plan, root)],
-    }];
-    let mut level: u16 = 0;
+    let root_treelet = make_treelet(tree, &mut plan, root);
+    let mut units = if spec.detach_root {
+        plan.detached = Some(root_treelet);
+        expand(&mut plan, tree, root_treelet, spec, &|_| false)?
+    } else {
+        vec![Unit {
+            parent: None,
+            treelets: vec![root_treelet],
+        }]
+    };
+    let mut level = spec.first_level;
     while !units.is_empty() {
         let first_block = plan.blocks.len();
-        pack_level(&mut plan, &units, level, block_size)?;
+        pack_level(&mut plan, &units, level, spec.block_size)?;
         let mut next = Vec::new();
         for b in first_block..plan.blocks.len() {
             let treelets = plan
@@ -157,34 +233,7 @@ pub(crate) fn plan_tree(
                 .map(|blk| blk.treelets.clone())
                 .unwrap_or_default();
             for t in treelets {
-                let nodes = plan
-                    .treelets
-                    .get(t)
-                    .map(|tl| tl.nodes.clone())
-                    .unwrap_or_default();
-                let lods: Vec<NodeId> = nodes
-                    .into_iter()
-                    .filter(|&n| plan.info(n).role == Role::Lod)
-                    .collect();
-                for n in lods {
-                    if wants(n) {
-                        if let Some(i) = plan.info.get_mut(n.index()) {
-                            i.proxy = u32::try_from(plan.lod_order.len())
-                                .map_err(|_| LayoutError::TooMany("LOD nodes"))?;
-                        }
-                        plan.lod_order.push(n);
-                    }
-                    let kids: Vec<usize> = tree
-                        .children(n)
-                        .into_iter()
-                        .flatten()
-                        .map(|c| make_treelet(tree, &mut plan, c))
-                        .collect();
-                    next.push(Unit {
-                        parent: Some(n),
-                        treelets: kids,
-                    });
-                }
+                next.extend(expand(&mut plan, tree, t, spec, &wants)?);
             }
         }
         units = next;
@@ -194,6 +243,58 @@ pub(crate) fn plan_tree(
     }
     plan.lod_levels = u32::from(level);
     Ok(plan)
+}
+
+/// The units of child treelets below the LOD nodes of treelet `t`, giving proxy ids to those
+/// `wants` names on the way (numbered in the order the file stores them). LOD nodes whose
+/// children live elsewhere get their references instead.
+fn expand(
+    plan: &mut TreePlan,
+    tree: &KdTree,
+    t: usize,
+    spec: &PlanSpec,
+    wants: &dyn Fn(NodeId) -> bool,
+) -> Result<Vec<Unit>, LayoutError> {
+    let lods: Vec<NodeId> = plan
+        .treelets
+        .get(t)
+        .map(|tl| tl.nodes.clone())
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|&n| plan.info(n).role == Role::Lod)
+        .collect();
+    let mut units = Vec::new();
+    for n in lods {
+        if wants(n) {
+            let id = u32::try_from(plan.lod_order.len())
+                .ok()
+                .and_then(|k| k.checked_add(spec.proxy_base))
+                .filter(|&id| id != NO_PROXY)
+                .ok_or(LayoutError::TooMany("LOD nodes"))?;
+            if let Some(i) = plan.info.get_mut(n.index()) {
+                i.proxy = id;
+            }
+            plan.lod_order.push(n);
+        }
+        if let Some(&(block, first)) = spec.external.get(&n) {
+            if let Some(i) = plan.info.get_mut(n.index()) {
+                i.child_block = block;
+                i.child_treelet = first;
+            }
+            continue;
+        }
+        let kids: Vec<usize> = tree
+            .children(n)
+            .into_iter()
+            .flatten()
+            .map(|c| make_treelet(tree, plan, c))
+            .collect();
+        units.push(Unit {
+            parent: Some(n),
+            treelets: kids,
+        });
+    }
+    Ok(units)
 }
 
 /// The first `max` LOD nodes in the order the file stores them: level by level, each level in
@@ -230,10 +331,17 @@ fn file_order_lod_nodes(tree: &KdTree, root: NodeId, info: &[NodeInfo], max: usi
 }
 
 /// Records every node's cell and role; returns the LOD nodes in arena order. A node at depth
-/// `d` (root 0) is a LOD node when it is inner and `d % H == H - 1`.
-fn classify(tree: &KdTree, root: NodeId, height: u8, info: &mut [NodeInfo]) -> Vec<NodeId> {
+/// `d` in the scene (its root 0; `offset` is the depth of this tree's root) is a LOD node when
+/// it is inner and `d % H == H - 1`.
+fn classify(
+    tree: &KdTree,
+    root: NodeId,
+    height: u8,
+    offset: u32,
+    info: &mut [NodeInfo],
+) -> Vec<NodeId> {
     let h = u32::from(height.max(1));
-    let mut stack = vec![(root, 0u32, tree.bounds())];
+    let mut stack = vec![(root, offset, tree.bounds())];
     while let Some((id, depth, cell)) = stack.pop() {
         let role = match tree.node(id) {
             Some(&KdNode::Inner {

@@ -116,6 +116,20 @@ pub(crate) fn plan_triangles(
     attrs: u16,
     block_size: usize,
 ) -> Result<TrianglePlan, LayoutError> {
+    let ever_stored = vec![false; mesh.triangles.len()];
+    plan_triangles_with(mesh, tree, vertices, attrs, block_size, ever_stored)
+}
+
+/// [`plan_triangles`] for part of a scene: `stored_elsewhere[t]` marks the triangles whose
+/// primary copy lives in another part, so they are stored here only as copies.
+pub(crate) fn plan_triangles_with(
+    mesh: &Mesh,
+    tree: &KdTree,
+    vertices: &VertexTable,
+    attrs: u16,
+    block_size: usize,
+    mut ever_stored: Vec<bool>,
+) -> Result<TrianglePlan, LayoutError> {
     let packer = Packer {
         mesh,
         vertices,
@@ -126,7 +140,7 @@ pub(crate) fn plan_triangles(
         leaves: vec![None; tree.nodes().len()],
         blocks: Vec::new(),
     };
-    let mut ever_stored = vec![false; mesh.triangles.len()];
+    ever_stored.resize(mesh.triangles.len(), false);
     let mut open = OpenBlock::default();
     for leaf in tree.leaves_depth_first() {
         let Some(KdNode::Leaf { triangles }) = tree.node(leaf) else {

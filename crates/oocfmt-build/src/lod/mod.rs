@@ -18,9 +18,10 @@ use rayon::prelude::*;
 use crate::kdtree::{KdNode, KdTree, NodeId};
 use crate::mesh::{Bounds, Mesh};
 use crate::raycast::{cross, dot, normalise, sub, Prepared, Tracer};
+pub(crate) use sampling::shade;
 pub use sampling::{
-    DIAGONAL_RAYS_MAX, DIAGONAL_RAYS_MIN, FACE_RAYS_BASE, FACE_RAYS_MAX, FACE_RAYS_MIN,
-    TRIANGLES_PER_DIAGONAL_RAY, TRIANGLES_PER_FACE_RAY,
+    Oracle, Shade, DIAGONAL_RAYS_MAX, DIAGONAL_RAYS_MIN, FACE_RAYS_BASE, FACE_RAYS_MAX,
+    FACE_RAYS_MIN, TRIANGLES_PER_DIAGONAL_RAY, TRIANGLES_PER_FACE_RAY,
 };
 
 /// Subtrees of at most this many distinct triangles test every ray against each of them
@@ -256,6 +257,7 @@ fn node_lod<'a>(
         triangles: tris.len(),
         threshold,
         diagonals,
+        force_max: false,
     }
     .run();
     LodData {
@@ -269,7 +271,35 @@ fn node_lod<'a>(
     }
 }
 
-fn triangle_area(mesh: &Mesh, t: usize) -> f64 {
+/// The LOD data of a cell whose subtree is not in memory (the top of an out-of-core build):
+/// `answer` gives what each ray sees. Casts the most rays on every face and direction, so a
+/// first call that records the rays and a second that answers them cast the same sequence.
+/// `area` is the subtree's triangle area; a cell no ray hits gets a grey voxel.
+pub fn sample_cell(cell: Bounds, threshold: f32, area: f64, answer: Oracle<'_>) -> LodData {
+    let mesh = Mesh::default();
+    let tree = KdTree::empty();
+    let mut tracer = Tracer::new(&mesh, &tree);
+    let sampled = sampling::NodeSampler {
+        mesh: &mesh,
+        tracer: &mut tracer,
+        target: sampling::Target::Oracle(answer),
+        cell,
+        triangles: usize::MAX,
+        threshold,
+        diagonals: true,
+        force_max: true,
+    }
+    .run();
+    LodData {
+        voxel: sampled
+            .voxel
+            .unwrap_or(Voxel::Single(Sample::pack([0.0, 0.0, 1.0], [0.5; 3]))),
+        proxy_samples: sampled.proxy,
+        area: (area as f32).min(f32::MAX),
+    }
+}
+
+pub(crate) fn triangle_area(mesh: &Mesh, t: usize) -> f64 {
     mesh.corners(t).map_or(0.0, |c| {
         let p = c.map(|v| v.map(f64::from));
         let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));

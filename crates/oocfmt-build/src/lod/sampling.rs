@@ -27,12 +27,21 @@ pub const DIAGONAL_RAYS_MIN: usize = 2;
 pub const DIAGONAL_RAYS_MAX: usize = 16;
 pub const TRIANGLES_PER_DIAGONAL_RAY: usize = 24;
 
+/// What a ray sees: the normal turned to face it, the mesh's own normal, and the colour.
+pub type Shade = ([f64; 3], [f64; 3], [f64; 3]);
+
+/// Answers a ray `(ray, t1, eps)` from elsewhere: the shaded first hit in `0 ..= t1`.
+pub type Oracle<'t> = &'t mut dyn FnMut(&Ray, f64, f64) -> Option<Shade>;
+
 /// What the rays of one node are tested against.
 pub(super) enum Target<'t> {
     /// A small subtree's triangles, each tested: cheaper than traversing the subtree.
     Each(&'t [Prepared]),
     /// The subtree under this node, traversed.
     Subtree(NodeId),
+    /// A subtree not in memory (out-of-core builds): its rays are recorded, traced part by
+    /// part, and answered afterwards.
+    Oracle(Oracle<'t>),
 }
 
 /// What the hits of one face or direction add up to.
@@ -97,6 +106,9 @@ pub(super) struct NodeSampler<'a, 'b> {
     pub threshold: f32,
     /// Whether to sample the twelve diagonal proxy directions (only proxied nodes need them).
     pub diagonals: bool,
+    /// Cast the most rays everywhere, whatever the hits say: the ray sequence is then fixed in
+    /// advance, as an [`Target::Oracle`] that records rays before answering them needs.
+    pub force_max: bool,
 }
 
 /// The voxel (`None` when no ray hit anything) and the 18 proxy samples of a node.
@@ -125,7 +137,11 @@ impl NodeSampler<'_, '_> {
         };
 
         let mut faces = [Acc::default(); 6];
-        let base = (self.triangles / TRIANGLES_PER_FACE_RAY).clamp(FACE_RAYS_MIN, FACE_RAYS_BASE);
+        let base = if self.force_max {
+            FACE_RAYS_MAX
+        } else {
+            (self.triangles / TRIANGLES_PER_FACE_RAY).clamp(FACE_RAYS_MIN, FACE_RAYS_BASE)
+        };
         for (f, acc) in faces.iter_mut().enumerate() {
             if face_area(f) <= 0.0 {
                 continue;
@@ -147,7 +163,11 @@ impl NodeSampler<'_, '_> {
         for (p, acc) in proxy.iter_mut().zip(&faces) {
             *p = acc.facing_sample().unwrap_or(Sample::EMPTY);
         }
-        let rays = (self.triangles / TRIANGLES_PER_DIAGONAL_RAY).min(DIAGONAL_RAYS_MAX);
+        let rays = if self.force_max {
+            DIAGONAL_RAYS_MAX
+        } else {
+            (self.triangles / TRIANGLES_PER_DIAGONAL_RAY).min(DIAGONAL_RAYS_MAX)
+        };
         let diagonals = if self.diagonals { 12 } else { 0 };
         for (p, d) in proxy
             .iter_mut()
@@ -243,14 +263,17 @@ impl NodeSampler<'_, '_> {
     }
 
     fn trace(&mut self, acc: &mut Acc, ray: &Ray, t1: f64, eps: f64) {
-        let hit = match self.target {
-            Target::Each(triangles) => first_hit_of(triangles, ray, 0.0, t1, eps),
-            Target::Subtree(node) => self.tracer.first_hit(node, ray, 0.0, t1, eps),
+        let shaded = match &mut self.target {
+            Target::Each(triangles) => first_hit_of(triangles, ray, 0.0, t1, eps)
+                .and_then(|hit| shade(self.mesh, &hit, ray.dir)),
+            Target::Subtree(node) => self
+                .tracer
+                .first_hit(*node, ray, 0.0, t1, eps)
+                .and_then(|hit| shade(self.mesh, &hit, ray.dir)),
+            Target::Oracle(answer) => answer(ray, t1, eps),
         };
-        if let Some(hit) = hit {
-            if let Some((facing, raw, colour)) = shade(self.mesh, &hit, ray.dir) {
-                acc.add(facing, raw, colour);
-            }
+        if let Some((facing, raw, colour)) = shaded {
+            acc.add(facing, raw, colour);
         }
     }
 }
@@ -305,7 +328,7 @@ fn face_point(f: usize, i: usize, lo: &[f64; 3], ext: &[f64; 3]) -> [f64; 3] {
 
 /// The normal turned to face a ray along `dir`, the mesh's own normal, and the colour at a hit.
 /// Normals are the interpolated vertex normals when the mesh has them, else the geometric one.
-fn shade(mesh: &Mesh, hit: &Hit, dir: [f64; 3]) -> Option<([f64; 3], [f64; 3], [f64; 3])> {
+pub(crate) fn shade(mesh: &Mesh, hit: &Hit, dir: [f64; 3]) -> Option<Shade> {
     let t = hit.triangle as usize;
     let idx = *mesh.triangles.get(t)?;
     let p = mesh.corners(t)?.map(|c| c.map(f64::from));

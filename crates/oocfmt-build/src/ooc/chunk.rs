@@ -1,0 +1,382 @@
+//! One chunk of an out-of-core build, in memory: its mesh from its spill file, its kd-subtree
+//! (binned SAH), its LOD data and its blocks. The blocks below the chunk's top treelet are
+//! encoded with chunk-local block ids and spilled; the top treelet goes back to the caller,
+//! which lays it out with the top of the scene.
+
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use oocfmt::BlockKind;
+
+use super::soup::SoupReader;
+use super::split::Chunk;
+use super::OocError;
+use crate::import::{InputTriangle, Location, MeshSink, PartSchema, TriangleSink};
+use crate::kdtree::{build_cell, KdBuildOptions, KdNode, KdTree, NodeId};
+use crate::layout::plan::{plan_tree_with, LodSource, PlanSpec, Role, TreePlan};
+use crate::layout::treelets::encode_treelets;
+use crate::layout::triangles::{
+    encode_triangles, plan_triangles_with, LeafRef, TriangleCounts, VertexTable,
+};
+use crate::layout::{LayoutError, LayoutOptions};
+use crate::lod::{shade, triangle_area, LodData, Shade};
+use crate::mesh::{Bounds, Mesh};
+use crate::raycast::{clip_to_box, Ray, Tracer};
+use std::collections::BTreeMap;
+
+use oocfmt::records::Voxel;
+
+/// The scene-wide facts every chunk is built with.
+pub struct SceneFacts {
+    pub schema: PartSchema,
+    /// Scene material index of each importer material (`None`: no material), when the scene
+    /// has materials.
+    pub material_index: Option<rustc_hash::FxHashMap<Option<u32>, u32>>,
+    pub attrs: u16,
+    pub block_size: usize,
+}
+
+/// A block written to the spill file, by position.
+#[derive(Clone, Copy, Debug)]
+pub struct SpilledBlock {
+    pub kind: BlockKind,
+    pub level: u16,
+    pub item_count: u32,
+    pub offset: u64,
+    pub len: u64,
+}
+
+/// A node of a chunk's top treelet, for the top layout.
+#[derive(Clone, Debug)]
+pub enum UpperNode {
+    Basic {
+        axis: u8,
+        split: f32,
+        children: [Option<usize>; 2],
+    },
+    /// A LOD node at the bottom of the treelet: its children are in the chunk's own blocks.
+    Frontier {
+        axis: u8,
+        split: f32,
+        present: [bool; 2],
+        child_block: u32,
+        child_treelet: u32,
+        lod: LodData,
+    },
+    Leaf(LeafRef),
+}
+
+/// What a chunk hands back once its blocks are spilled.
+pub struct ChunkOut {
+    /// Its top treelet in preorder, children as indices into this list.
+    pub upper: Vec<UpperNode>,
+    /// Treelet blocks then triangle blocks, in chunk-local id order within each kind.
+    pub treelet_blocks: Vec<SpilledBlock>,
+    pub triangle_blocks: Vec<SpilledBlock>,
+    /// Proxy records (80 bytes each, node block chunk-local) in proxy-id order.
+    pub proxies: Vec<u8>,
+    pub counts: ChunkCounts,
+    /// Area of the chunk's primary triangles.
+    pub area: f64,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ChunkCounts {
+    pub basic_nodes: u64,
+    pub lod_nodes: u64,
+    pub leaves: u64,
+    pub voxels_single: u64,
+    pub voxels_six: u64,
+    pub treelets: u64,
+    pub depth: u32,
+    pub triangles: TriangleCounts,
+}
+
+/// A ray of a top LOD node, waiting for its first hit: the segment `0 ..= t1`, the tolerance,
+/// and the nearest hit found so far.
+pub struct PendingRay {
+    pub ray: Ray,
+    pub t1: f64,
+    pub eps: f64,
+    pub best: Option<(f64, Shade)>,
+}
+
+/// Spills raw blocks to one file.
+pub struct BlockSpill {
+    path: PathBuf,
+    file: File,
+    at: u64,
+}
+
+impl BlockSpill {
+    pub fn create(path: &Path) -> Result<BlockSpill, OocError> {
+        let file = File::create(path).map_err(|e| OocError::spill(path, e))?;
+        Ok(BlockSpill {
+            path: path.to_path_buf(),
+            file,
+            at: 0,
+        })
+    }
+
+    fn push(
+        &mut self,
+        kind: BlockKind,
+        level: u16,
+        item_count: u32,
+        raw: &[u8],
+    ) -> Result<SpilledBlock, OocError> {
+        self.file
+            .write_all(raw)
+            .map_err(|e| OocError::spill(&self.path, e))?;
+        let b = SpilledBlock {
+            kind,
+            level,
+            item_count,
+            offset: self.at,
+            len: raw.len() as u64,
+        };
+        self.at += raw.len() as u64;
+        Ok(b)
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+/// Loads a chunk's spill file as a mesh in the scene's schema; returns it with, for each
+/// triangle, whether this is its primary copy.
+fn load_mesh(chunk: &Chunk, facts: &SceneFacts) -> Result<(Mesh, Vec<bool>), OocError> {
+    let mut sink = MeshSink::for_part(facts.schema.clone());
+    let mut primary = Vec::new();
+    let at = Location::file(chunk.path.display().to_string());
+    for record in SoupReader::open(&chunk.path, chunk.count)? {
+        let r = record?;
+        let material = facts
+            .material_index
+            .as_ref()
+            .map(|map| map.get(&r.triangle.material).copied().unwrap_or(0));
+        sink.push(
+            InputTriangle {
+                material,
+                ..r.triangle
+            },
+            &at,
+        )?;
+        primary.push(r.primary);
+    }
+    let (mesh, _) = sink.finish()?;
+    Ok((mesh, primary))
+}
+
+/// Builds chunk `chunk`, answers the pending rays of the top LOD nodes above it, and spills
+/// its blocks. `proxy_base` is the id of its first proxy.
+pub fn build_chunk(
+    chunk: &Chunk,
+    facts: &SceneFacts,
+    kd: &KdBuildOptions,
+    layout: &LayoutOptions,
+    proxy_base: u32,
+    rays: &mut [&mut [PendingRay]],
+    spill: &mut BlockSpill,
+) -> Result<ChunkOut, OocError> {
+    let (mesh, primary) = load_mesh(chunk, facts)?;
+    let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
+    let nodes = build_cell(&mesh, all, chunk.cell, chunk.depth + 1, kd)?;
+    let tree = KdTree::from_parts(&mesh, nodes, Some(NodeId(0)), chunk.cell, kd.params())?;
+    answer_rays(&mesh, &tree, &chunk.cell, rays);
+
+    let h = u32::from(layout.treelet_height.max(1));
+    let first_level =
+        u16::try_from(chunk.depth / h + 1).map_err(|_| LayoutError::TooMany("LOD levels"))?;
+    let max_proxies = match layout.triangles_per_proxy {
+        0 => usize::MAX,
+        n => (chunk.count as usize)
+            .div_ceil(n as usize)
+            .max(1 << (h - 1).min(16)),
+    };
+    let external = BTreeMap::new();
+    let plan = plan_tree_with(
+        &tree,
+        &PlanSpec {
+            treelet_height: layout.treelet_height,
+            block_size: facts.block_size,
+            max_proxies,
+            depth_offset: chunk.depth,
+            proxy_base,
+            detach_root: true,
+            first_level,
+            lod: LodSource::Sample {
+                mesh: &mesh,
+                threshold: layout.voxel_threshold,
+            },
+            external: &external,
+        },
+    )?;
+    let vertices = VertexTable::new(&mesh);
+    let stored_elsewhere: Vec<bool> = primary.iter().map(|p| !p).collect();
+    let tri_plan = plan_triangles_with(
+        &mesh,
+        &tree,
+        &vertices,
+        facts.attrs,
+        facts.block_size,
+        stored_elsewhere,
+    )?;
+
+    let mut counts = ChunkCounts {
+        depth: chunk.depth + tree.depth(),
+        ..ChunkCounts::default()
+    };
+    let mut treelet_blocks = Vec::with_capacity(plan.blocks.len());
+    for b in &plan.blocks {
+        let raw = encode_treelets(b, &tree, &plan, &tri_plan.leaves, 0)?;
+        let n = u32::try_from(b.treelets.len()).map_err(|_| LayoutError::TooMany("treelets"))?;
+        treelet_blocks.push(spill.push(BlockKind::Treelet, b.level, n, &raw)?);
+        for &t in &b.treelets {
+            count_treelet(&plan, t, &mut counts);
+        }
+    }
+    let mut triangle_blocks = Vec::with_capacity(tri_plan.blocks.len());
+    for b in &tri_plan.blocks {
+        let (raw, c) = encode_triangles(b, &mesh, &vertices, facts.attrs)?;
+        let n = u32::try_from(c.triangles).map_err(|_| LayoutError::TooMany("triangles"))?;
+        triangle_blocks.push(spill.push(BlockKind::Triangle, 0, n, &raw)?);
+        counts.triangles.primaries += c.primaries;
+        counts.triangles.triangles += c.triangles;
+        counts.triangles.vertices += c.vertices;
+    }
+    let mut proxies = Vec::with_capacity(plan.lod_order.len() * oocfmt::records::PROXY_LEN);
+    for &n in &plan.lod_order {
+        let data = plan
+            .lod_data(n)
+            .ok_or(LayoutError::Internal("a LOD node has no LOD data"))?;
+        data.proxy(plan.info(n).block).encode_into(&mut proxies);
+    }
+    let area = (0..mesh.triangles.len())
+        .filter(|&t| primary.get(t).copied().unwrap_or(false))
+        .map(|t| triangle_area(&mesh, t))
+        .sum();
+    Ok(ChunkOut {
+        upper: upper_nodes(&tree, &plan, &tri_plan.leaves)?,
+        treelet_blocks,
+        triangle_blocks,
+        proxies,
+        counts,
+        area,
+    })
+}
+
+pub(super) fn count_treelet(plan: &TreePlan, t: usize, counts: &mut ChunkCounts) {
+    let Some(treelet) = plan.treelets.get(t) else {
+        return;
+    };
+    counts.treelets += 1;
+    for &n in &treelet.nodes {
+        match plan.info(n).role {
+            Role::Basic => counts.basic_nodes += 1,
+            Role::Leaf => counts.leaves += 1,
+            Role::Lod => {
+                counts.lod_nodes += 1;
+                match plan.lod_data(n).map(|d| d.voxel) {
+                    Some(Voxel::Six(_)) => counts.voxels_six += 1,
+                    _ => counts.voxels_single += 1,
+                }
+            }
+        }
+    }
+}
+
+/// The chunk's detached top treelet, as the top layout needs it.
+fn upper_nodes(
+    tree: &KdTree,
+    plan: &TreePlan,
+    leaves: &[Option<LeafRef>],
+) -> Result<Vec<UpperNode>, OocError> {
+    let nodes = plan
+        .detached
+        .and_then(|t| plan.treelets.get(t))
+        .map(|t| t.nodes.clone())
+        .ok_or(LayoutError::Internal("a chunk has no top treelet"))?;
+    let index = |id: NodeId| nodes.iter().position(|&n| n == id);
+    nodes
+        .iter()
+        .map(|&id| {
+            let info = plan.info(id);
+            Ok(match (info.role, tree.node(id)) {
+                (Role::Leaf, _) => UpperNode::Leaf(
+                    leaves
+                        .get(id.index())
+                        .copied()
+                        .flatten()
+                        .ok_or(LayoutError::Internal("a leaf has no triangle block"))?,
+                ),
+                (
+                    Role::Basic,
+                    Some(&KdNode::Inner {
+                        axis,
+                        split,
+                        children,
+                    }),
+                ) => UpperNode::Basic {
+                    axis,
+                    split,
+                    children: children.map(|c| c.and_then(index)),
+                },
+                (
+                    Role::Lod,
+                    Some(&KdNode::Inner {
+                        axis,
+                        split,
+                        children,
+                    }),
+                ) => UpperNode::Frontier {
+                    axis,
+                    split,
+                    present: children.map(|c| c.is_some()),
+                    child_block: info.child_block,
+                    child_treelet: info.child_treelet,
+                    lod: *plan
+                        .lod_data(id)
+                        .ok_or(LayoutError::Internal("a LOD node has no LOD data"))?,
+                },
+                _ => {
+                    return Err(
+                        LayoutError::Internal("a node's role does not match its kind").into(),
+                    )
+                }
+            })
+        })
+        .collect()
+}
+
+/// Traces the pending rays through this chunk: the part of each ray inside the chunk's cell,
+/// against the chunk's triangles; a nearer hit replaces the one found so far.
+pub(super) fn answer_rays(
+    mesh: &Mesh,
+    tree: &KdTree,
+    cell: &Bounds,
+    rays: &mut [&mut [PendingRay]],
+) {
+    let Some(root) = tree.root() else { return };
+    let mut tracer = Tracer::new(mesh, tree);
+    for r in rays.iter_mut().flat_map(|list| list.iter_mut()) {
+        let Some((c0, c1)) = clip_to_box(&r.ray, cell) else {
+            continue;
+        };
+        let (t0, t1) = (c0.max(0.0), c1.min(r.t1));
+        if t0 > t1 + r.eps {
+            continue;
+        }
+        let Some(hit) = tracer.first_hit(root, &r.ray, t0, t1, r.eps) else {
+            continue;
+        };
+        if r.best.is_some_and(|(t, _)| t <= hit.t) {
+            continue;
+        }
+        if let Some(s) = shade(mesh, &hit, r.ray.dir) {
+            r.best = Some((hit.t, s));
+        }
+    }
+}

@@ -1,0 +1,393 @@
+//! Triangle soup: the spill files of the out-of-core build. Every triangle is one fixed 92-byte
+//! little-endian record holding its own corners and attributes, so a file can be split, counted
+//! and streamed without any index into other data.
+//!
+//! | bytes | field |
+//! |------:|-------|
+//! | 0–35  | 9 × f32 corner positions |
+//! | 36–71 | 9 × f32 corner normals (zero without) |
+//! | 72–83 | 3 × RGBA8 corner colours (zero without) |
+//! | 84–87 | u32 material as the importer numbered it, `u32::MAX` for none |
+//! | 88–91 | u32 flags: bit 0 normals, bit 1 colours, bit 2 a copy that is not the primary |
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+use rustc_hash::FxHashSet as HashSet;
+
+use oocfmt::metadata::Material;
+
+use super::OocError;
+use crate::import::{
+    DropReason, ImportError, ImportReport, InputTriangle, Location, MeshSink, Skipped, TriangleSink,
+};
+use crate::mesh::{Bounds, Mesh};
+
+pub const RECORD_LEN: usize = 92;
+const NO_MATERIAL: u32 = u32::MAX;
+const HAS_NORMALS: u32 = 1;
+const HAS_COLOURS: u32 = 2;
+const NOT_PRIMARY: u32 = 4;
+
+/// One triangle of the soup. `primary` is false on the copies a split made of a triangle
+/// reaching both sides: exactly one copy of each input triangle is primary, so the file stores
+/// it once as a primary (what `export` writes back).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SoupTriangle {
+    pub triangle: InputTriangle,
+    pub primary: bool,
+}
+
+impl SoupTriangle {
+    pub fn encode(&self) -> [u8; RECORD_LEN] {
+        let mut r = [0u8; RECORD_LEN];
+        let t = &self.triangle;
+        let floats = t
+            .positions
+            .iter()
+            .flatten()
+            .chain(t.normals.iter().flatten().flatten());
+        for (k, f) in floats.enumerate() {
+            r[4 * k..4 * k + 4].copy_from_slice(&f.to_le_bytes());
+        }
+        if let Some(c) = t.colours {
+            for (k, rgba) in c.iter().enumerate() {
+                r[72 + 4 * k..76 + 4 * k].copy_from_slice(rgba);
+            }
+        }
+        r[84..88].copy_from_slice(&t.material.unwrap_or(NO_MATERIAL).to_le_bytes());
+        let mut flags = 0;
+        if t.normals.is_some() {
+            flags |= HAS_NORMALS;
+        }
+        if t.colours.is_some() {
+            flags |= HAS_COLOURS;
+        }
+        if !self.primary {
+            flags |= NOT_PRIMARY;
+        }
+        r[88..92].copy_from_slice(&flags.to_le_bytes());
+        r
+    }
+
+    pub fn decode(r: &[u8; RECORD_LEN]) -> SoupTriangle {
+        let word = |k: usize| {
+            let mut b = [0u8; 4];
+            b.copy_from_slice(&r[4 * k..4 * k + 4]);
+            b
+        };
+        let f = |k: usize| f32::from_le_bytes(word(k));
+        let corners = |base: usize| -> [[f32; 3]; 3] {
+            std::array::from_fn(|c| std::array::from_fn(|a| f(base + 3 * c + a)))
+        };
+        let flags = u32::from_le_bytes(word(22));
+        let material = u32::from_le_bytes(word(21));
+        SoupTriangle {
+            triangle: InputTriangle {
+                positions: corners(0),
+                normals: (flags & HAS_NORMALS != 0).then(|| corners(9)),
+                colours: (flags & HAS_COLOURS != 0).then(|| std::array::from_fn(|c| word(18 + c))),
+                material: (material != NO_MATERIAL).then_some(material),
+            },
+            primary: flags & NOT_PRIMARY == 0,
+        }
+    }
+
+    /// The vertex mean: inside the triangle, so inside every cell holding its primary copy.
+    pub fn centroid(&self) -> [f32; 3] {
+        let p = &self.triangle.positions;
+        std::array::from_fn(|a| {
+            ((f64::from(p[0][a]) + f64::from(p[1][a]) + f64::from(p[2][a])) / 3.0) as f32
+        })
+    }
+}
+
+/// Appends records to a spill file.
+pub struct SoupWriter {
+    path: PathBuf,
+    out: BufWriter<File>,
+    count: u64,
+}
+
+impl SoupWriter {
+    pub fn create(path: &Path) -> Result<SoupWriter, OocError> {
+        let file = File::create(path).map_err(|e| OocError::spill(path, e))?;
+        Ok(SoupWriter {
+            path: path.to_path_buf(),
+            out: BufWriter::with_capacity(1 << 20, file),
+            count: 0,
+        })
+    }
+
+    pub fn push(&mut self, t: &SoupTriangle) -> Result<(), OocError> {
+        self.out
+            .write_all(&t.encode())
+            .map_err(|e| OocError::spill(&self.path, e))?;
+        self.count += 1;
+        Ok(())
+    }
+
+    /// Flushes the file; returns its path and record count.
+    pub fn finish(mut self) -> Result<(PathBuf, u64), OocError> {
+        self.out
+            .flush()
+            .map_err(|e| OocError::spill(&self.path, e))?;
+        Ok((self.path, self.count))
+    }
+}
+
+/// Streams the records of a spill file written by [`SoupWriter`].
+pub struct SoupReader {
+    path: PathBuf,
+    input: BufReader<File>,
+    left: u64,
+}
+
+impl SoupReader {
+    /// Opens `path`, which must hold exactly `count` records.
+    pub fn open(path: &Path, count: u64) -> Result<SoupReader, OocError> {
+        let file = File::open(path).map_err(|e| OocError::spill(path, e))?;
+        let len = file.metadata().map_err(|e| OocError::spill(path, e))?.len();
+        if Some(len) != count.checked_mul(RECORD_LEN as u64) {
+            return Err(OocError::SpillLength {
+                path: path.display().to_string(),
+                len,
+                count,
+            });
+        }
+        Ok(SoupReader {
+            path: path.to_path_buf(),
+            input: BufReader::with_capacity(1 << 20, file),
+            left: count,
+        })
+    }
+}
+
+impl Iterator for SoupReader {
+    type Item = Result<SoupTriangle, OocError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.left == 0 {
+            return None;
+        }
+        self.left -= 1;
+        let mut r = [0u8; RECORD_LEN];
+        Some(
+            self.input
+                .read_exact(&mut r)
+                .map(|()| SoupTriangle::decode(&r))
+                .map_err(|e| OocError::spill(&self.path, e)),
+        )
+    }
+}
+
+/// The imported scene as a spill file, with what the whole scene has.
+pub struct Soup {
+    pub path: PathBuf,
+    pub count: u64,
+    pub bounds: Bounds,
+    /// Materials as the importers added them.
+    pub materials: Vec<Material>,
+    /// The materials triangles use (`None`: no material), in order of first use: the order the
+    /// in-memory sink numbers them in, so both paths give the same material table.
+    pub used_materials: Vec<Option<u32>>,
+    pub normals: bool,
+    pub colours: bool,
+    pub report: ImportReport,
+}
+
+impl Soup {
+    /// The whole scene as one in-memory mesh, numbered exactly as if it had been imported into
+    /// a [`MeshSink`] directly.
+    pub fn load_mesh(&self) -> Result<Mesh, OocError> {
+        let mut sink = MeshSink::new(false);
+        for m in &self.materials {
+            sink.add_material(m.clone())?;
+        }
+        let at = Location::file(self.path.display().to_string());
+        for r in SoupReader::open(&self.path, self.count)? {
+            sink.push(r?.triangle, &at)?;
+        }
+        Ok(sink.finish()?.0)
+    }
+}
+
+/// A sink that applies the bad-input policy and streams every kept triangle to a spill file.
+pub struct SoupSink {
+    strict: bool,
+    writer: SoupWriter,
+    bounds: Bounds,
+    materials: Vec<Material>,
+    used: HashSet<Option<u32>>,
+    used_order: Vec<Option<u32>>,
+    normals: bool,
+    colours: bool,
+    report: ImportReport,
+}
+
+/// Material indices in triangle blocks are 16-bit (spec §8).
+const MAX_MATERIALS: usize = 1 << 16;
+
+impl SoupSink {
+    pub fn create(path: &Path, strict: bool) -> Result<SoupSink, OocError> {
+        Ok(SoupSink {
+            strict,
+            writer: SoupWriter::create(path)?,
+            bounds: Bounds::EMPTY,
+            materials: Vec::new(),
+            used: HashSet::default(),
+            used_order: Vec::new(),
+            normals: false,
+            colours: false,
+            report: ImportReport::default(),
+        })
+    }
+
+    /// Fails on an empty result, like the in-memory sink.
+    pub fn finish(self) -> Result<Soup, OocError> {
+        if self.report.triangles_out == 0 {
+            return Err(ImportError::Empty {
+                dropped: self.report.dropped_total(),
+            }
+            .into());
+        }
+        let (path, count) = self.writer.finish()?;
+        Ok(Soup {
+            path,
+            count,
+            bounds: self.bounds,
+            materials: self.materials,
+            used_materials: self.used_order,
+            normals: self.normals,
+            colours: self.colours,
+            report: self.report,
+        })
+    }
+
+    fn drop_or_fail(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError> {
+        self.report.triangles_in += 1;
+        if self.strict {
+            return Err(ImportError::Strict {
+                at: at.clone(),
+                reason,
+            });
+        }
+        *self.report.dropped.entry(reason).or_default() += 1;
+        Ok(())
+    }
+}
+
+impl TriangleSink for SoupSink {
+    fn add_material(&mut self, material: Material) -> Result<u32, ImportError> {
+        self.materials.push(material);
+        u32::try_from(self.materials.len() - 1)
+            .ok()
+            .filter(|&m| m != NO_MATERIAL)
+            .ok_or(ImportError::Limit {
+                at: Location::default(),
+                what: "materials".into(),
+                limit: u64::from(u32::MAX),
+            })
+    }
+
+    fn push(&mut self, t: InputTriangle, at: &Location) -> Result<(), ImportError> {
+        if let Some(reason) = DropReason::classify(&t.positions) {
+            return self.drop_or_fail(reason, at);
+        }
+        if self.report.triangles_out >= u64::from(u32::MAX) {
+            return Err(ImportError::Limit {
+                at: at.clone(),
+                what: "triangles".into(),
+                limit: u64::from(u32::MAX),
+            });
+        }
+        if self.used.insert(t.material) {
+            if self.used.len() > MAX_MATERIALS {
+                return Err(ImportError::Limit {
+                    at: at.clone(),
+                    what: "distinct materials used by triangles".into(),
+                    limit: MAX_MATERIALS as u64,
+                });
+            }
+            self.used_order.push(t.material);
+        }
+        self.writer
+            .push(&SoupTriangle {
+                triangle: t,
+                primary: true,
+            })
+            .map_err(|e| ImportError::Io {
+                path: self.writer.path.display().to_string(),
+                source: std::io::Error::other(e.to_string()),
+            })?;
+        for p in t.positions {
+            self.bounds.extend(p);
+        }
+        self.normals |= t.normals.is_some();
+        self.colours |= t.colours.is_some();
+        self.report.triangles_in += 1;
+        self.report.triangles_out += 1;
+        Ok(())
+    }
+
+    fn reject(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError> {
+        self.drop_or_fail(reason, at)
+    }
+
+    fn skip(&mut self, what: Skipped, count: u64) {
+        *self.report.skipped.entry(what).or_default() += count;
+    }
+
+    fn warn(&mut self, at: &Location, message: String) {
+        self.report.warnings.push(format!("{at}: {message}"));
+    }
+
+    fn begin_file(&mut self, path: &str) {
+        self.report.files.push(path.to_string());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn records_round_trip_with_and_without_attributes() {
+        let mut t =
+            InputTriangle::new([[1.0, -2.5, 3.0], [f32::MAX, 0.0, -0.0], [1e-30, 7.0, 8.0]]);
+        let plain = SoupTriangle {
+            triangle: t,
+            primary: true,
+        };
+        assert_eq!(SoupTriangle::decode(&plain.encode()), plain);
+        t.normals = Some([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]);
+        t.colours = Some([[1, 2, 3, 4], [5, 6, 7, 8], [9, 10, 11, 12]]);
+        t.material = Some(7);
+        let full = SoupTriangle {
+            triangle: t,
+            primary: false,
+        };
+        assert_eq!(SoupTriangle::decode(&full.encode()), full);
+    }
+
+    #[test]
+    fn a_spill_file_of_the_wrong_length_is_refused() -> Result<(), OocError> {
+        let dir = tempfile::tempdir().map_err(|e| OocError::spill(Path::new("."), e))?;
+        let path = dir.path().join("s.soup");
+        let mut w = SoupWriter::create(&path)?;
+        let t = SoupTriangle {
+            triangle: InputTriangle::new([[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+            primary: true,
+        };
+        w.push(&t)?;
+        w.push(&t)?;
+        let (path, n) = w.finish()?;
+        assert_eq!(n, 2);
+        let back: Vec<SoupTriangle> = SoupReader::open(&path, 2)?.collect::<Result<_, _>>()?;
+        assert_eq!(back, vec![t, t]);
+        let e = SoupReader::open(&path, 3).err().map(|e| e.to_string());
+        assert!(e.is_some_and(|m| m.contains("s.soup")));
+        Ok(())
+    }
+}

@@ -1,0 +1,269 @@
+//! The out-of-core median split (Áfra et al. 2012, §4.1): while a cell holds more triangles
+//! than fit in memory, cut it at the middle of its longest axis in one streaming pass over its
+//! spill file. A triangle reaching both halves goes to both (its copy on the side away from its
+//! centroid is marked as not primary); a triangle is placed by the bounds of its part inside
+//! the cell, so thin diagonal triangles are not copied where they do not reach.
+
+use std::path::{Path, PathBuf};
+
+use super::soup::{SoupReader, SoupWriter};
+use super::OocError;
+use crate::kdtree::clip_triangle;
+use crate::mesh::Bounds;
+use crate::progress::Progress;
+
+/// The top of the tree, above the chunks: inner nodes from median splits, in preorder.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TopNode {
+    Inner {
+        axis: u8,
+        split: f32,
+        children: [Option<usize>; 2],
+    },
+    Chunk(usize),
+}
+
+/// A cell small enough to build in memory: its spill file, its place in the tree.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Chunk {
+    pub path: PathBuf,
+    pub count: u64,
+    pub cell: Bounds,
+    /// Node level of the chunk's root below the scene root (0 for the root itself).
+    pub depth: u32,
+    /// The top nodes above it, root first.
+    pub ancestors: Vec<usize>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TopTree {
+    pub nodes: Vec<TopNode>,
+    pub chunks: Vec<Chunk>,
+    /// Cells that could not be split further (every triangle reaches both halves, or the depth
+    /// limit) and stay over the budget.
+    pub oversized: Vec<usize>,
+}
+
+/// Deepest median split: leaves the in-core builds room under the format's 128 levels.
+pub const MAX_SPLIT_DEPTH: u32 = 48;
+
+/// Splits the soup at `path` (`count` records over `cell`) until every chunk holds at most
+/// `budget` triangles. Chunks come out left to right; their files replace the input's, which is
+/// deleted once split.
+pub fn split(
+    path: &Path,
+    count: u64,
+    cell: Bounds,
+    budget: u64,
+    dir: &Path,
+    progress: &mut dyn Progress,
+) -> Result<TopTree, OocError> {
+    let mut top = TopTree::default();
+    let mut done = 0u64;
+    progress.phase("split", Some(count));
+    // (node index to fill, file, count, cell, depth, ancestors)
+    let mut stack = vec![(0usize, path.to_path_buf(), count, cell, 0u32, Vec::new())];
+    top.nodes.push(TopNode::Chunk(0));
+    while let Some((node, file, n, cell, depth, ancestors)) = stack.pop() {
+        let axis = cell.longest_axis();
+        let (lo, hi) = (cell.min[axis], cell.max[axis]);
+        let mid = (lo + (hi - lo) * 0.5).clamp(lo, hi);
+        let splittable = n > budget && depth < MAX_SPLIT_DEPTH && lo < mid && mid < hi;
+        let halves = if splittable {
+            Some(split_file(
+                &file,
+                n,
+                &cell,
+                axis,
+                mid,
+                dir,
+                top.nodes.len(),
+            )?)
+        } else {
+            None
+        };
+        match halves {
+            // Some triangles stayed on one side only: the split made progress.
+            Some([l, r]) if l.1 < n || r.1 < n => {
+                std::fs::remove_file(&file).map_err(|e| OocError::spill(&file, e))?;
+                let (lc, rc) = cell.split(axis, mid);
+                let mut children = [None, None];
+                let mut path_down = ancestors.clone();
+                path_down.push(node);
+                // Pushed right first so the left subtree is numbered and finished first.
+                let mut pending = Vec::new();
+                for (slot, ((f, c), cc)) in
+                    children.iter_mut().zip([l, r].into_iter().zip([lc, rc]))
+                {
+                    if c == 0 {
+                        std::fs::remove_file(&f).map_err(|e| OocError::spill(&f, e))?;
+                        continue;
+                    }
+                    let id = top.nodes.len();
+                    // Filled in when the child's own turn comes.
+                    top.nodes.push(TopNode::Chunk(usize::MAX));
+                    *slot = Some(id);
+                    pending.push((id, f, c, cc));
+                }
+                if let Some(n) = top.nodes.get_mut(node) {
+                    *n = TopNode::Inner {
+                        axis: axis as u8,
+                        split: mid,
+                        children,
+                    };
+                }
+                for (id, f, c, cc) in pending.into_iter().rev() {
+                    stack.push((id, f, c, cc, depth + 1, path_down.clone()));
+                }
+            }
+            other => {
+                if let Some([l, r]) = other {
+                    for f in [l.0, r.0] {
+                        std::fs::remove_file(&f).map_err(|e| OocError::spill(&f, e))?;
+                    }
+                }
+                if n > budget {
+                    top.oversized.push(top.chunks.len());
+                }
+                if let Some(slot) = top.nodes.get_mut(node) {
+                    *slot = TopNode::Chunk(top.chunks.len());
+                }
+                top.chunks.push(Chunk {
+                    path: file,
+                    count: n,
+                    cell,
+                    depth,
+                    ancestors,
+                });
+                done += n;
+                progress.advance(done.min(count));
+            }
+        }
+    }
+    progress.finish_phase();
+    Ok(top)
+}
+
+/// One streaming pass: every record of `file` to the side(s) of `axis = mid` its clipped part
+/// reaches. Returns each side's file and count.
+fn split_file(
+    file: &Path,
+    n: u64,
+    cell: &Bounds,
+    axis: usize,
+    mid: f32,
+    dir: &Path,
+    id: usize,
+) -> Result<[(PathBuf, u64); 2], OocError> {
+    let mut left = SoupWriter::create(&dir.join(format!("n{id}-l.soup")))?;
+    let mut right = SoupWriter::create(&dir.join(format!("n{id}-r.soup")))?;
+    for record in SoupReader::open(file, n)? {
+        let t = record?;
+        let part = clip_triangle(t.triangle.positions, cell);
+        let (pmin, pmax) = (part.min[axis], part.max[axis]);
+        let in_plane = pmin == mid && pmax == mid;
+        let goes_left = pmin < mid || in_plane;
+        let goes_right = pmax > mid || in_plane;
+        let owner_left = t.centroid()[axis] <= mid;
+        if goes_left {
+            let mut c = t;
+            c.primary = t.primary && (owner_left || !goes_right);
+            left.push(&c)?;
+        }
+        if goes_right {
+            let mut c = t;
+            c.primary = t.primary && (!owner_left || !goes_left);
+            right.push(&c)?;
+        }
+    }
+    Ok([left.finish()?, right.finish()?])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::soup::SoupTriangle;
+    use super::*;
+    use crate::import::InputTriangle;
+    use crate::progress::NoProgress;
+
+    fn tri(x: f32, w: f32) -> SoupTriangle {
+        SoupTriangle {
+            triangle: InputTriangle::new([[x, 0.0, 0.0], [x + w, 0.0, 0.0], [x, 1.0, 0.0]]),
+            primary: true,
+        }
+    }
+
+    #[test]
+    fn every_triangle_keeps_exactly_one_primary_copy() -> Result<(), OocError> {
+        let dir = tempfile::tempdir().map_err(|e| OocError::spill(Path::new("."), e))?;
+        let path = dir.path().join("all.soup");
+        let mut w = SoupWriter::create(&path)?;
+        // 64 small triangles along x, and 8 wide ones that straddle many cuts.
+        let mut input = Vec::new();
+        for k in 0..64 {
+            input.push(tri(k as f32, 0.5));
+        }
+        for k in 0..8 {
+            input.push(tri(k as f32 * 8.0 + 0.25, 20.0));
+        }
+        for t in &input {
+            w.push(t)?;
+        }
+        let (path, n) = w.finish()?;
+        let cell = Bounds {
+            min: [0.0; 3],
+            max: [84.25, 1.0, 0.0],
+        };
+        let top = split(&path, n, cell, 10, dir.path(), &mut NoProgress)?;
+        assert!(top.chunks.len() >= 8, "{} chunks", top.chunks.len());
+        assert!(top.oversized.is_empty());
+        let mut primaries = Vec::new();
+        let mut copies = 0;
+        for c in &top.chunks {
+            assert!(c.count <= 10);
+            for r in SoupReader::open(&c.path, c.count)? {
+                let r = r?;
+                let b = Bounds::of_points(&r.triangle.positions);
+                assert!(b.min[0] <= c.cell.max[0] && b.max[0] >= c.cell.min[0]);
+                if r.primary {
+                    primaries.push(r.triangle.positions[0][0].to_bits());
+                } else {
+                    copies += 1;
+                }
+            }
+        }
+        primaries.sort_unstable();
+        let mut expected: Vec<u32> = input
+            .iter()
+            .map(|t| t.triangle.positions[0][0].to_bits())
+            .collect();
+        expected.sort_unstable();
+        assert_eq!(primaries, expected);
+        assert!(copies > 0);
+        // Only the chunk files are left.
+        let files = std::fs::read_dir(dir.path())
+            .map_err(|e| OocError::spill(dir.path(), e))?
+            .count();
+        assert_eq!(files, top.chunks.len());
+        Ok(())
+    }
+
+    #[test]
+    fn a_cell_every_triangle_crosses_stays_one_oversized_chunk() -> Result<(), OocError> {
+        let dir = tempfile::tempdir().map_err(|e| OocError::spill(Path::new("."), e))?;
+        let mut w = SoupWriter::create(&dir.path().join("all.soup"))?;
+        for _ in 0..20 {
+            w.push(&tri(0.0, 10.0))?;
+        }
+        let (path, n) = w.finish()?;
+        let cell = Bounds {
+            min: [0.0; 3],
+            max: [10.0, 1.0, 0.0],
+        };
+        let top = split(&path, n, cell, 4, dir.path(), &mut NoProgress)?;
+        assert_eq!(top.chunks.len(), 1);
+        assert_eq!(top.oversized, vec![0]);
+        assert_eq!(top.nodes, vec![TopNode::Chunk(0)]);
+        Ok(())
+    }
+}

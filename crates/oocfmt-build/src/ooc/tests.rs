@@ -1,0 +1,133 @@
+//! The piecewise sampling of the LOD nodes above the chunks gives what sampling the whole
+//! subtree at once gives.
+
+use oocfmt::records::Voxel;
+
+use super::chunk::{answer_rays, PendingRay};
+use super::top::{finish_top_lod, TopLod};
+use crate::kdtree::{build_cell, KdBuildOptions, KdTree, NodeId};
+use crate::lod::{sample_cell, shade, DEFAULT_VOXEL_THRESHOLD};
+use crate::mesh::{Bounds, Mesh};
+use crate::raycast::intersect_triangle;
+
+/// A closed box of 12 triangles with outward normals, in one vertex colour.
+fn closed_box(mesh: &mut Mesh, lo: [f32; 3], size: f32, colour: [u8; 4]) {
+    let hi = lo.map(|c| c + size);
+    let corner = |k: usize| -> [f32; 3] {
+        std::array::from_fn(|a| if k >> a & 1 == 1 { hi[a] } else { lo[a] })
+    };
+    let base = mesh.positions.len() as u32;
+    mesh.positions.extend((0..8).map(corner));
+    if let Some(c) = mesh.colours.as_mut() {
+        c.extend([colour; 8]);
+    }
+    // Quads as corner indices (bit 0 x, bit 1 y, bit 2 z), counter-clockwise from outside.
+    for q in [
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+    ] {
+        let v = q.map(|k| base + k);
+        mesh.triangles.push([v[0], v[1], v[2]]);
+        mesh.triangles.push([v[0], v[2], v[3]]);
+    }
+}
+
+/// A green hull with yellow cargo inside.
+fn hull_with_cargo() -> Mesh {
+    let mut mesh = Mesh {
+        colours: Some(Vec::new()),
+        ..Mesh::default()
+    };
+    closed_box(&mut mesh, [0.0; 3], 4.0, [0, 255, 0, 255]);
+    closed_box(&mut mesh, [1.0, 1.5, 1.2], 1.5, [255, 255, 0, 255]);
+    mesh
+}
+
+/// The part of `mesh` whose triangles reach `cell`, with its own kd-tree.
+fn chunk_of(mesh: &Mesh, cell: Bounds) -> (Mesh, KdTree) {
+    let mut part = Mesh {
+        positions: mesh.positions.clone(),
+        colours: mesh.colours.clone(),
+        ..Mesh::default()
+    };
+    for t in 0..mesh.triangles.len() {
+        let b = mesh.triangle_bounds(t);
+        if (0..3).all(|a| b.min[a] <= cell.max[a] && b.max[a] >= cell.min[a]) {
+            part.triangles.push(mesh.triangles[t]);
+        }
+    }
+    let all: Vec<u32> = (0..part.triangles.len() as u32).collect();
+    let opts = KdBuildOptions {
+        max_leaf_triangles: 2,
+        ..KdBuildOptions::default()
+    };
+    let nodes = build_cell(&part, all, cell, 2, &opts).unwrap_or_default();
+    let tree = KdTree::from_parts(&part, nodes, Some(NodeId(0)), cell, Vec::new());
+    let Ok(tree) = tree else { panic!("{tree:?}") };
+    (part, tree)
+}
+
+#[test]
+fn sampling_in_pieces_matches_sampling_the_whole() {
+    let mesh = hull_with_cargo();
+    let cell = mesh.bounds();
+    let mut rays = Vec::new();
+    sample_cell(cell, DEFAULT_VOXEL_THRESHOLD, 0.0, &mut |ray, t1, eps| {
+        rays.push(PendingRay {
+            ray: *ray,
+            t1,
+            eps,
+            best: None,
+        });
+        None
+    });
+    assert_eq!(rays.len(), 6 * 64 + 12 * 16);
+    // The reference: every triangle tested against every ray.
+    let mut reference = rays.iter();
+    let whole = sample_cell(cell, DEFAULT_VOXEL_THRESHOLD, 1.0, &mut |ray, t1, eps| {
+        let r = reference.next()?;
+        assert_eq!((r.ray, r.t1), (*ray, t1));
+        let mut best: Option<crate::raycast::Hit> = None;
+        for t in 0..mesh.triangles.len() {
+            let c = mesh.corners(t)?.map(|p| p.map(f64::from));
+            if let Some((th, u, v)) = intersect_triangle(ray, c) {
+                if th >= -eps && th <= t1 + eps && best.is_none_or(|b| th < b.t) {
+                    best = Some(crate::raycast::Hit {
+                        t: th,
+                        triangle: t as u32,
+                        u,
+                        v,
+                    });
+                }
+            }
+        }
+        shade(&mesh, &best?, ray.dir)
+    });
+    // In pieces: the two halves of the cell, each with the triangles reaching it.
+    let (left, right) = cell.split(0, 2.0);
+    for half in [left, right] {
+        let (part, tree) = chunk_of(&mesh, half);
+        answer_rays(&part, &tree, &half, &mut [rays.as_mut_slice()]);
+    }
+    let lod = TopLod {
+        node: 0,
+        cell,
+        rays,
+    };
+    let pieces = finish_top_lod(&lod, DEFAULT_VOXEL_THRESHOLD, 1.0);
+    assert_eq!(pieces, whole);
+    // And it is the hull's green, not the cargo's yellow, from every side.
+    let Voxel::Six(faces) = pieces.voxel else {
+        panic!("{:?}", pieces.voxel)
+    };
+    for f in faces {
+        assert_eq!(f.colour(), [0.0, 1.0, 0.0]);
+    }
+    for p in pieces.proxy_samples {
+        assert_eq!(p.colour(), [0.0, 1.0, 0.0]);
+    }
+}

@@ -1,0 +1,236 @@
+//! The top of an out-of-core tree: the median-split nodes above the chunks plus each chunk's
+//! top treelet, assembled into one small tree that the ordinary planner lays out.
+//!
+//! The LOD nodes among the median-split nodes cannot be sampled against a subtree in memory.
+//! Their rays are fixed in advance (the most rays on every face and direction), traced through
+//! every chunk below them as each chunk is built, and the nearest hit of each is kept: the
+//! same first-hit sampling an in-core node gets, done in pieces.
+
+use std::collections::BTreeMap;
+
+use super::chunk::{ChunkOut, PendingRay, UpperNode};
+use super::split::{TopNode, TopTree};
+use crate::kdtree::{KdNode, KdTree, NodeId};
+use crate::layout::triangles::LeafRef;
+use crate::layout::LayoutError;
+use crate::lod::{sample_cell, LodData};
+use crate::mesh::Bounds;
+
+/// A LOD node among the median-split nodes, with its rays.
+pub struct TopLod {
+    pub node: usize,
+    pub cell: Bounds,
+    pub rays: Vec<PendingRay>,
+}
+
+/// Finds the median-split nodes that are LOD nodes (scene depth `d` with `d % h == h - 1`) and
+/// records the rays that will sample them.
+pub fn top_lod_nodes(top: &TopTree, bounds: Bounds, height: u8, threshold: f32) -> Vec<TopLod> {
+    let h = u32::from(height.max(1));
+    let mut out = Vec::new();
+    let mut stack = vec![(0usize, bounds, 0u32)];
+    while let Some((id, cell, depth)) = stack.pop() {
+        let Some(&TopNode::Inner {
+            axis,
+            split,
+            children,
+        }) = top.nodes.get(id)
+        else {
+            continue;
+        };
+        if depth % h == h - 1 {
+            let mut rays = Vec::new();
+            sample_cell(cell, threshold, 0.0, &mut |ray, t1, eps| {
+                rays.push(PendingRay {
+                    ray: *ray,
+                    t1,
+                    eps,
+                    best: None,
+                });
+                None
+            });
+            out.push(TopLod {
+                node: id,
+                cell,
+                rays,
+            });
+        }
+        let (lo, hi) = cell.split(usize::from(axis), split);
+        for (c, cc) in children.into_iter().zip([lo, hi]) {
+            if let Some(c) = c {
+                stack.push((c, cc, depth + 1));
+            }
+        }
+    }
+    out.sort_by_key(|t| t.node);
+    out
+}
+
+/// The LOD data of a top LOD node from its answered rays.
+pub fn finish_top_lod(lod: &TopLod, threshold: f32, area: f64) -> LodData {
+    let mut answers = lod.rays.iter();
+    sample_cell(lod.cell, threshold, area, &mut |_, _, _| {
+        answers.next().and_then(|r| r.best.map(|(_, s)| s))
+    })
+}
+
+/// The top tree ready for the planner: a skeleton whose leaves carry no triangles (their
+/// references are in `leaves`) and whose frontier LOD nodes have placeholder children.
+pub struct Skeleton {
+    pub tree: KdTree,
+    pub lod: BTreeMap<NodeId, LodData>,
+    /// Frontier LOD nodes: (chunk, chunk-local child block, child treelet).
+    pub frontier: BTreeMap<NodeId, (usize, u32, u32)>,
+    /// Leaves of chunk top treelets: (chunk, reference with a chunk-local triangle block).
+    pub leaves: BTreeMap<NodeId, (usize, LeafRef)>,
+}
+
+pub fn skeleton(
+    top: &TopTree,
+    chunks: &[ChunkOut],
+    top_lod: &BTreeMap<usize, LodData>,
+    bounds: Bounds,
+) -> Result<Skeleton, LayoutError> {
+    let mut s = Builder {
+        nodes: Vec::new(),
+        lod: BTreeMap::new(),
+        frontier: BTreeMap::new(),
+        leaves: BTreeMap::new(),
+        top,
+        chunks,
+        top_lod,
+    };
+    let root = s.top_node(0)?;
+    Ok(Skeleton {
+        tree: KdTree::skeleton(s.nodes, root, bounds),
+        lod: s.lod,
+        frontier: s.frontier,
+        leaves: s.leaves,
+    })
+}
+
+struct Builder<'a> {
+    nodes: Vec<KdNode>,
+    lod: BTreeMap<NodeId, LodData>,
+    frontier: BTreeMap<NodeId, (usize, u32, u32)>,
+    leaves: BTreeMap<NodeId, (usize, LeafRef)>,
+    top: &'a TopTree,
+    chunks: &'a [ChunkOut],
+    top_lod: &'a BTreeMap<usize, LodData>,
+}
+
+impl Builder<'_> {
+    fn push(&mut self, node: KdNode) -> Result<NodeId, LayoutError> {
+        let id = u32::try_from(self.nodes.len()).map_err(|_| LayoutError::TooMany("nodes"))?;
+        self.nodes.push(node);
+        Ok(NodeId(id))
+    }
+
+    /// Adds a node and its subtree; the tree is shallow (median splits are at most 48 deep).
+    fn top_node(&mut self, k: usize) -> Result<NodeId, LayoutError> {
+        match self.top.nodes.get(k) {
+            Some(&TopNode::Inner {
+                axis,
+                split,
+                children,
+            }) => {
+                let id = self.push(KdNode::Leaf {
+                    triangles: Vec::new(),
+                })?;
+                if let Some(d) = self.top_lod.get(&k) {
+                    self.lod.insert(id, *d);
+                }
+                let mut kids = [None, None];
+                for (slot, c) in kids.iter_mut().zip(children) {
+                    if let Some(c) = c {
+                        *slot = Some(self.top_node(c)?);
+                    }
+                }
+                self.set(
+                    id,
+                    KdNode::Inner {
+                        axis,
+                        split,
+                        children: kids,
+                    },
+                );
+                Ok(id)
+            }
+            Some(&TopNode::Chunk(c)) => self.upper(c, 0),
+            None => Err(LayoutError::Internal("a top node is missing")),
+        }
+    }
+
+    fn set(&mut self, id: NodeId, node: KdNode) {
+        if let Some(slot) = self.nodes.get_mut(id.index()) {
+            *slot = node;
+        }
+    }
+
+    fn upper(&mut self, chunk: usize, k: usize) -> Result<NodeId, LayoutError> {
+        let node = self
+            .chunks
+            .get(chunk)
+            .and_then(|c| c.upper.get(k))
+            .cloned()
+            .ok_or(LayoutError::Internal(
+                "a chunk's top treelet is missing a node",
+            ))?;
+        let placeholder = || KdNode::Leaf {
+            triangles: Vec::new(),
+        };
+        let id = self.push(placeholder())?;
+        match node {
+            UpperNode::Leaf(r) => {
+                self.leaves.insert(id, (chunk, r));
+            }
+            UpperNode::Basic {
+                axis,
+                split,
+                children,
+            } => {
+                let mut kids = [None, None];
+                for (slot, c) in kids.iter_mut().zip(children) {
+                    if let Some(c) = c {
+                        *slot = Some(self.upper(chunk, c)?);
+                    }
+                }
+                self.set(
+                    id,
+                    KdNode::Inner {
+                        axis,
+                        split,
+                        children: kids,
+                    },
+                );
+            }
+            UpperNode::Frontier {
+                axis,
+                split,
+                present,
+                child_block,
+                child_treelet,
+                lod,
+            } => {
+                let mut kids = [None, None];
+                for (slot, p) in kids.iter_mut().zip(present) {
+                    if p {
+                        *slot = Some(self.push(placeholder())?);
+                    }
+                }
+                self.set(
+                    id,
+                    KdNode::Inner {
+                        axis,
+                        split,
+                        children: kids,
+                    },
+                );
+                self.lod.insert(id, lod);
+                self.frontier
+                    .insert(id, (chunk, child_block, child_treelet));
+            }
+        }
+        Ok(id)
+    }
+}
