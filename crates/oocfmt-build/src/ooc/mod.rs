@@ -131,14 +131,14 @@ pub fn build(
             .filter(|t| c.ancestors.contains(&t.node))
             .map(|t| t.rays.as_mut_slice())
             .collect();
-        let out = build_chunk(c, &facts, kd, layout, proxy_count, &mut rays, &mut spill)?;
+        let mut out = build_chunk(c, &facts, kd, layout, proxy_count, &mut rays, &mut spill)?;
         std::fs::remove_file(&c.path).map_err(|e| OocError::spill(&c.path, e))?;
         let n = u32::try_from(out.proxies.len() / oocfmt::records::PROXY_LEN)
             .map_err(|_| LayoutError::TooMany("proxies"))?;
         proxy_count = proxy_count
             .checked_add(n)
             .ok_or(LayoutError::TooMany("proxies"))?;
-        chunk_proxies.push(out.proxies.clone());
+        chunk_proxies.push(std::mem::take(&mut out.proxies));
         outs.push(out);
         progress.advance(i as u64 + 1);
     }
