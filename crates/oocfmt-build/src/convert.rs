@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use oocfmt::{BlockKind, ReadOptions, Reader};
 
-use crate::import::{self, ImportError, MeshSink, TriangleSink};
+use crate::import::{self, ImportError, MeshSink, Recentre, TriangleSink};
 use crate::kdtree::{self, KdBuildOptions, KdError};
 use crate::layout::{build_blocks, write_blocks, LayoutError, LayoutOptions};
 use crate::progress::Progress;
@@ -29,6 +29,8 @@ pub struct ConvertOptions {
     pub mem_limit: u64,
     pub obj: import::obj::ObjOptions,
     pub gltf: import::gltf::GltfOptions,
+    /// The scene origin positions are stored relative to.
+    pub recentre: Recentre,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -99,7 +101,19 @@ pub fn convert(
         list: Vec::new(),
         at: start,
     };
-    let mut sink = MeshSink::new(opts.strict);
+    // `--recentre auto` first reads the positions alone, for their bounds.
+    let scan = opts.recentre.needs_scan();
+    if scan {
+        progress.phase("bounds", None);
+    }
+    let origin = opts
+        .recentre
+        .origin(|sink| inputs.iter().try_for_each(|p| import_one(p, sink, opts)))?;
+    if scan {
+        progress.finish_phase();
+        phases.done("bounds");
+    }
+    let mut sink = MeshSink::new(opts.strict).with_origin(origin);
     progress.phase("import", Some(inputs.len() as u64));
     for (i, path) in inputs.iter().enumerate() {
         import_one(path, &mut sink, opts)?;
@@ -126,6 +140,8 @@ pub fn convert(
     progress.phase("LOD + layout", None);
     let mut layout = opts.layout.clone();
     layout.sources = inputs.iter().map(|p| p.display().to_string()).collect();
+    layout.origin = origin;
+    layout.params.extend(opts.recentre.params(origin));
     let container = build_blocks(&mesh, &tree, &layout)?;
     progress.finish_phase();
     phases.done("lod+layout");
