@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use oocfmt::{BlockKind, ReadOptions, Reader};
 
-use crate::import::{self, ImportError, TriangleSink};
+use crate::import::{self, ImportError, Recentre, TriangleSink};
 use crate::kdtree::{self, KdBuildOptions, KdError};
 use crate::layout::{build_blocks, write_blocks, LayoutError, LayoutOptions};
 use crate::ooc::soup::SoupSink;
@@ -35,6 +35,8 @@ pub struct ConvertOptions {
     pub mem_limit: u64,
     pub obj: import::obj::ObjOptions,
     pub gltf: import::gltf::GltfOptions,
+    /// The scene origin positions are stored relative to.
+    pub recentre: Recentre,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -106,6 +108,18 @@ pub fn convert(
         list: Vec::new(),
         at: start,
     };
+    // `--recentre auto` first reads the positions alone, for their bounds.
+    let scan = opts.recentre.needs_scan();
+    if scan {
+        progress.phase("bounds", None);
+    }
+    let origin = opts
+        .recentre
+        .origin(|sink| inputs.iter().try_for_each(|p| import_one(p, sink, opts)))?;
+    if scan {
+        progress.finish_phase();
+        phases.done("bounds");
+    }
     // Spill files live next to the output: the same disk, and room for a model's worth.
     let parent = match output.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -118,7 +132,8 @@ pub fn convert(
             path: output.display().to_string(),
             source,
         })?;
-    let mut sink = SoupSink::create(&spill.path().join("import.soup"), opts.strict)?;
+    let mut sink =
+        SoupSink::create(&spill.path().join("import.soup"), opts.strict)?.with_origin(origin);
     progress.phase("import", Some(inputs.len() as u64));
     for (i, path) in inputs.iter().enumerate() {
         import_one(path, &mut sink, opts)?;
@@ -131,6 +146,8 @@ pub fn convert(
     let chunk_triangles = opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE;
     let mut layout = opts.layout.clone();
     layout.sources = inputs.iter().map(|p| p.display().to_string()).collect();
+    layout.origin = origin;
+    layout.params.extend(opts.recentre.params(origin));
 
     let (written, out_of_core) = if soup.count <= chunk_triangles {
         let mesh = soup.load_mesh()?;

@@ -821,6 +821,9 @@ impl TriangleSink for Recording {
     fn skip(&mut self, _: Skipped, _: u64) {}
     fn warn(&mut self, _: &Location, _: String) {}
     fn begin_file(&mut self, _: &str) {}
+    fn place(&mut self, exact: [f64; 3]) -> [f32; 3] {
+        exact.map(|c| c as f32)
+    }
 }
 
 // ---------------------------------------------------------------------------------------

@@ -100,6 +100,9 @@ impl TriangleSink for Recorder {
     fn begin_file(&mut self, path: &str) {
         self.files.push(path.to_string());
     }
+    fn place(&mut self, exact: [f64; 3]) -> [f32; 3] {
+        exact.map(|c| c as f32)
+    }
 }
 
 fn record(path: &Path) -> Recorder {

@@ -16,6 +16,7 @@ fn options(chunk_triangles: u64) -> ConvertOptions {
         mem_limit: chunk_triangles * BYTES_PER_TRIANGLE_IN_CORE,
         obj: Default::default(),
         gltf: Default::default(),
+        recentre: Default::default(),
     }
 }
 

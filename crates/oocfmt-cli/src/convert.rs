@@ -6,7 +6,7 @@ use oocfmt::{Codec, WriteOptions};
 use oocfmt_build::convert::{convert, ConvertError, ConvertOptions, MIN_MEM_LIMIT};
 use oocfmt_build::import::gltf::GltfOptions;
 use oocfmt_build::import::obj::ObjOptions;
-use oocfmt_build::import::Skipped;
+use oocfmt_build::import::{Recentre, Skipped};
 use oocfmt_build::kdtree::KdBuildOptions;
 use oocfmt_build::layout::LayoutOptions;
 use oocfmt_build::report::{total_memory, ConvertReport};
@@ -41,6 +41,16 @@ pub struct Args {
     /// memory). A larger scene is built out of core, in chunks that fit
     #[arg(long, value_parser = parse_mem_limit)]
     pub mem_limit: Option<u64>,
+    /// Store positions relative to an origin: none (positions exactly as read), auto (near
+    /// the centre of the input's bounds; one more pass over the input) or X,Y,Z. For models
+    /// far from zero, where f32 positions would lose precision; the report gives the error
+    #[arg(
+        long,
+        default_value = "none",
+        value_name = "auto|none|X,Y,Z",
+        allow_hyphen_values = true
+    )]
+    pub recentre: Recentre,
     /// glTF: import every scene, not only the default one
     #[arg(long)]
     pub all_scenes: bool,
@@ -118,6 +128,7 @@ pub fn run(a: &Args) -> CliResult {
             all_scenes: a.all_scenes,
             ..GltfOptions::default()
         },
+        recentre: a.recentre,
     };
     let mut progress = Phases::new(a.quiet);
     let report = convert(&a.inputs, &a.output, &opts, &mut progress).map_err(|e| match e {
@@ -170,6 +181,12 @@ fn render(r: &ConvertReport) -> String {
     for w in &i.warnings {
         let _ = writeln!(o, "warning    {w}");
     }
+    let p = &i.placement;
+    let _ = writeln!(
+        o,
+        "positions  origin {} {} {}: largest coordinate error {:.3e} ({:.3e} without an origin)",
+        p.origin[0], p.origin[1], p.origin[2], p.max_abs_error, p.max_abs_error_without_origin
+    );
     let _ = writeln!(
         o,
         "tree       {} basic + {} LOD nodes, {} leaves, depth {}",

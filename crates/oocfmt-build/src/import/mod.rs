@@ -4,6 +4,7 @@
 
 pub mod gltf;
 pub mod obj;
+pub mod placement;
 mod sink;
 
 use std::collections::BTreeMap;
@@ -11,6 +12,7 @@ use std::fmt;
 
 use serde::Serialize;
 
+pub use placement::{PlacementReport, Recentre};
 pub(crate) use sink::compact_materials;
 pub use sink::{MeshSink, PartSchema};
 
@@ -162,6 +164,8 @@ pub struct ImportReport {
     pub dropped: BTreeMap<DropReason, u64>,
     pub skipped: BTreeMap<Skipped, u64>,
     pub warnings: Vec<String>,
+    /// The scene origin and the rounding error of the stored positions.
+    pub placement: PlacementReport,
 }
 
 impl ImportReport {
@@ -207,4 +211,12 @@ pub trait TriangleSink {
     fn warn(&mut self, at: &Location, message: String);
     /// Records an input file (for provenance).
     fn begin_file(&mut self, path: &str);
+    /// A world position, as exact as the input gives it (f64), to the f32 position stored:
+    /// relative to the scene origin, rounded once. Importers call it for every position.
+    fn place(&mut self, exact: [f64; 3]) -> [f32; 3];
+    /// True when the sink only wants positions placed (the bounds pass of `--recentre auto`):
+    /// an importer may then skip faces, materials and other attributes.
+    fn positions_only(&self) -> bool {
+        false
+    }
 }

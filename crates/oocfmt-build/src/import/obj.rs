@@ -10,6 +10,10 @@
 //! accepts later ones). An index that does not resolve, zero included, makes the face's
 //! triangles rejected as [`DropReason::IndexOutOfRange`], not the file. Texture coordinates
 //! are ignored, and so is the `w` of `v x y z w`, which only weighs rational curves.
+//!
+//! Positions are read as f64 and stored through [`TriangleSink::place`], which subtracts the
+//! scene origin before rounding to f32 (see [`coordinate`] for why that is still bit-exact
+//! without an origin).
 
 mod lines;
 mod materials;
@@ -73,6 +77,7 @@ pub fn import(
     };
     let mut lines = Lines::new(BufReader::with_capacity(1 << 16, file), opts.max_line_bytes);
     let mut obj = Obj::new(name, dir, opts);
+    obj.positions_only = sink.positions_only();
     while let Some((n, text)) = lines.next_line().map_err(|f| obj.line_error(f))? {
         obj.statement(n, text, sink)?;
     }
@@ -102,6 +107,8 @@ struct Obj<'o> {
     notes: Notes,
     lines: u64,
     points: u64,
+    /// The sink wants positions only (a bounds pass): every other statement is skipped.
+    positions_only: bool,
 }
 
 impl<'o> Obj<'o> {
@@ -119,6 +126,7 @@ impl<'o> Obj<'o> {
             notes: Notes::default(),
             lines: 0,
             points: 0,
+            positions_only: false,
         }
     }
 
@@ -154,6 +162,9 @@ impl<'o> Obj<'o> {
         let Some(keyword) = words.next() else {
             return Ok(());
         };
+        if self.positions_only && keyword != "v" {
+            return Ok(());
+        }
         match keyword {
             "v" => self.vertex(words, sink),
             "vn" => self.normal(words),
@@ -196,33 +207,63 @@ impl<'o> Obj<'o> {
             .map_err(|_| self.parse_error(format!("`{word}` is not a number (in `{what}`)")))
     }
 
+    /// A position coordinate, in f64 so that the origin is subtracted before rounding to f32.
+    /// Rounding the f64 to f32 gives the f32 nearest the text except where the f64 lies
+    /// exactly halfway between two f32s and the text does not (it has more digits than f64
+    /// keeps): there the f64 is moved one f64 step towards the f32 nearest the text, so that
+    /// without an origin the stored value is exactly `word.parse::<f32>()`, as it always was.
+    fn coordinate(&self, word: &str) -> Result<f64, ImportError> {
+        let bad = || self.parse_error(format!("`{word}` is not a number (in `v`)"));
+        let x: f64 = word.parse().map_err(|_| bad())?;
+        if !maybe_f32_tie(x) {
+            return Ok(x);
+        }
+        let nearest: f32 = word.parse().map_err(|_| bad())?;
+        Ok(if nearest == x as f32 {
+            x
+        } else {
+            step_towards(x, f64::from(nearest))
+        })
+    }
+
     fn vertex(
         &mut self,
         words: SplitWhitespace<'_>,
         sink: &mut dyn TriangleSink,
     ) -> Result<(), ImportError> {
-        let mut vals = [0.0f32; 6];
+        let mut xyz = [0.0f64; 3];
+        let mut vals = [0.0f32; 3];
         let mut count = 0;
         for w in words {
-            let slot = vals.get_mut(count).ok_or_else(|| {
-                self.parse_error("`v` has more than 6 numbers (x y z [w] or x y z r g b)".into())
-            })?;
-            *slot = self.number(w, "v")?;
+            if let Some(slot) = xyz.get_mut(count) {
+                *slot = self.coordinate(w)?;
+            } else {
+                let slot = vals.get_mut(count - 3).ok_or_else(|| {
+                    self.parse_error(
+                        "`v` has more than 6 numbers (x y z [w] or x y z r g b)".into(),
+                    )
+                })?;
+                *slot = self.number(w, "v")?;
+            }
             count += 1;
         }
         let colour = match count {
             3 | 4 => None,
-            6 => Some([vals[3], vals[4], vals[5]]),
+            6 => Some(vals),
             k => {
                 return Err(self.parse_error(format!(
                     "`v` has {k} numbers, expected x y z [w] or x y z r g b"
                 )))
             }
         };
+        if self.positions_only {
+            sink.place(xyz);
+            return Ok(());
+        }
         if self.positions.len() >= self.opts.max_vertices {
             return Err(self.limit("vertex positions (`v`)", self.opts.max_vertices));
         }
-        self.positions.push([vals[0], vals[1], vals[2]]);
+        self.positions.push(sink.place(xyz));
         match colour {
             Some(rgb) => {
                 if !rgb.iter().all(|c| (0.0..=1.0).contains(c)) {
@@ -371,6 +412,28 @@ impl<'o> Obj<'o> {
     }
 }
 
+/// Whether rounding `x` to f32 may be a tie (exactly halfway between two f32s). Exact for
+/// f32's normal range, where the 29 low fraction bits that f32 drops are then exactly one
+/// half; outside it (subnormal, overflowing) always yes, as those are rare and the caller
+/// then checks against the f32 parse.
+fn maybe_f32_tie(x: f64) -> bool {
+    let a = x.abs();
+    if !a.is_finite() || a == 0.0 {
+        return false;
+    }
+    if a < f64::from(f32::MIN_POSITIVE) || a > f64::from(f32::MAX) {
+        return true;
+    }
+    x.to_bits() & ((1 << 29) - 1) == 1 << 28
+}
+
+/// The f64 next to `x` (finite, not zero) in the direction of `target`.
+fn step_towards(x: f64, target: f64) -> f64 {
+    let away_from_zero = (target > x) == (x > 0.0);
+    let bits = x.to_bits();
+    f64::from_bits(if away_from_zero { bits + 1 } else { bits - 1 })
+}
+
 /// `v`, `v/vt`, `v//vn` or `v/vt/vn` → the raw vertex and normal indices. Texture indices are
 /// checked for form only.
 fn parse_corner(word: &str) -> Option<(i64, Option<i64>)> {
@@ -434,6 +497,40 @@ mod tests {
         for bad in ["", "/1", "a", "1/x", "1//y", "1/2/3/4", "1.5", "1 2"] {
             assert_eq!(parse_corner(bad), None, "{bad}");
         }
+    }
+
+    #[test]
+    fn coordinates_round_to_the_f32_nearest_their_text() {
+        let opts = ObjOptions::default();
+        let obj = Obj::new("t.obj".into(), PathBuf::from("."), &opts);
+        // 1 + 2^-24 is halfway between the f32s 1 and 1 + 2^-23. These texts are just above
+        // (17 digits) or below it, or exactly it; the nearest f64 of the first two is the
+        // halfway point itself, which rounds to even (1.0) when converted.
+        for text in [
+            "1.0000000596046448",
+            "1.00000005960464477",
+            "1.000000059604644775390625",
+            "-1.0000000596046448",
+            "16777217.000000001",
+            "16777217",
+            "1e-45",
+            "7e-46",
+            "3.4028235677973366e38",
+            "3.40282357e38",
+            "0.1",
+            "-0",
+            "1e7",
+        ] {
+            let x = obj.coordinate(text).unwrap_or(f64::NAN);
+            let want: f32 = text.parse().unwrap_or(f32::NAN);
+            assert_eq!((x as f32).to_bits(), want.to_bits(), "{text}: {x:e}");
+            let exact: f64 = text.parse().unwrap_or(f64::NAN);
+            assert!(x == exact || step_towards(exact, x) == x, "{text}");
+        }
+        assert!(f64::from(1.0f32) + 2f64.powi(-24) != 1.0);
+        assert!(maybe_f32_tie(1.0 + 2f64.powi(-24)));
+        assert!(!maybe_f32_tie(1.0 + 2f64.powi(-23)));
+        assert!(!maybe_f32_tie(0.1));
     }
 
     #[test]

@@ -5,6 +5,7 @@ use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 use oocfmt::metadata::Material;
 
+use super::placement::Placement;
 use super::{
     DropReason, ImportError, ImportReport, InputTriangle, Location, Skipped, TriangleSink,
 };
@@ -47,6 +48,7 @@ pub struct MeshSink {
     materials: Vec<Option<u32>>,
     used_materials: HashSet<Option<u32>>,
     table: Vec<Material>,
+    placement: Placement,
     report: ImportReport,
 }
 
@@ -64,6 +66,14 @@ impl MeshSink {
         MeshSink {
             part: Some(schema),
             ..MeshSink::default()
+        }
+    }
+
+    /// Stores positions relative to `origin` (world = origin + stored).
+    pub fn with_origin(self, origin: [f64; 3]) -> MeshSink {
+        MeshSink {
+            placement: Placement::new(origin),
+            ..self
         }
     }
 
@@ -105,7 +115,8 @@ impl MeshSink {
 
     /// The mesh and the report. Fails on an empty result or on counts past the format's limits.
     pub fn finish(self) -> Result<(Mesh, ImportReport), ImportError> {
-        let report = self.report;
+        let mut report = self.report;
+        report.placement = self.placement.report();
         if self.triangles.is_empty() {
             return Err(ImportError::Empty {
                 dropped: report.dropped_total(),
@@ -266,6 +277,10 @@ impl TriangleSink for MeshSink {
     fn begin_file(&mut self, path: &str) {
         self.report.files.push(path.to_string());
     }
+
+    fn place(&mut self, exact: [f64; 3]) -> [f32; 3] {
+        self.placement.place(exact)
+    }
 }
 
 #[cfg(test)]
@@ -327,6 +342,27 @@ mod tests {
             msg.contains("m.obj:42") && msg.contains("zero area"),
             "{msg}"
         );
+    }
+
+    #[test]
+    fn positions_are_stored_relative_to_the_origin_and_the_error_reported(
+    ) -> Result<(), ImportError> {
+        let mut s = MeshSink::new(false).with_origin([1e7, 0.0, 0.0]);
+        let at = Location::default();
+        let p = [
+            [1e7 + 0.25, 0.0, 0.0],
+            [1e7 + 1.5, 0.0, 0.0],
+            [1e7, 1.0, 0.0],
+        ];
+        let positions = p.map(|q| s.place(q));
+        s.push(tri(positions), &at)?;
+        let (mesh, r) = s.finish()?;
+        assert_eq!(mesh.positions[0], [0.25, 0.0, 0.0]);
+        assert_eq!(r.placement.origin, [1e7, 0.0, 0.0]);
+        assert_eq!(r.placement.max_abs_error, 0.0);
+        // Without the origin, 1e7 + 0.25 rounds to 1e7 (f32 spacing 1 there).
+        assert_eq!(r.placement.max_abs_error_without_origin, 0.5);
+        Ok(())
     }
 
     #[test]

@@ -44,6 +44,8 @@ pub struct LayoutOptions {
     pub sources: Vec<String>,
     /// Extra `(key, value)` build parameters, appended after the ones the builder records.
     pub params: Vec<(String, String)>,
+    /// The scene origin the mesh positions are relative to (metadata `scene.origin`).
+    pub origin: [f64; 3],
 }
 
 impl Default for LayoutOptions {
@@ -56,6 +58,7 @@ impl Default for LayoutOptions {
             generator: concat!("oocfmt-build ", env!("CARGO_PKG_VERSION")).to_string(),
             sources: Vec::new(),
             params: Vec::new(),
+            origin: [0.0; 3],
         }
     }
 }
@@ -305,7 +308,7 @@ fn metadata(
         Scene {
             bounds_min: bounds.min,
             bounds_max: bounds.max,
-            origin: [0.0; 3],
+            origin: opts.origin,
         }
     } else {
         Scene::default()

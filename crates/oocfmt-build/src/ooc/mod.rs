@@ -339,7 +339,7 @@ fn metadata(
         scene: Scene {
             bounds_min: bounds.min,
             bounds_max: bounds.max,
-            origin: [0.0; 3],
+            origin: layout.origin,
         },
         root: Some(TreeletRef {
             block: order.top.first().copied().unwrap_or(0),

@@ -19,6 +19,7 @@ use rustc_hash::FxHashSet as HashSet;
 use oocfmt::metadata::Material;
 
 use super::OocError;
+use crate::import::placement::Placement;
 use crate::import::{
     DropReason, ImportError, ImportReport, InputTriangle, Location, MeshSink, Skipped, TriangleSink,
 };
@@ -223,6 +224,7 @@ pub struct SoupSink {
     used_order: Vec<Option<u32>>,
     normals: bool,
     colours: bool,
+    placement: Placement,
     report: ImportReport,
 }
 
@@ -240,12 +242,22 @@ impl SoupSink {
             used_order: Vec::new(),
             normals: false,
             colours: false,
+            placement: Placement::new([0.0; 3]),
             report: ImportReport::default(),
         })
     }
 
+    /// Stores positions relative to `origin` (world = origin + stored).
+    pub fn with_origin(self, origin: [f64; 3]) -> SoupSink {
+        SoupSink {
+            placement: Placement::new(origin),
+            ..self
+        }
+    }
+
     /// Fails on an empty result, like the in-memory sink.
-    pub fn finish(self) -> Result<Soup, OocError> {
+    pub fn finish(mut self) -> Result<Soup, OocError> {
+        self.report.placement = self.placement.report();
         if self.report.triangles_out == 0 {
             return Err(ImportError::Empty {
                 dropped: self.report.dropped_total(),
@@ -345,6 +357,10 @@ impl TriangleSink for SoupSink {
 
     fn begin_file(&mut self, path: &str) {
         self.report.files.push(path.to_string());
+    }
+
+    fn place(&mut self, exact: [f64; 3]) -> [f32; 3] {
+        self.placement.place(exact)
     }
 }
 

@@ -266,7 +266,7 @@ pub(super) fn emit(
             } else {
                 world.apply_point([e[0], e[1], e[2]])
             };
-            *p = q.map(|c| c as f32);
+            *p = sink.place(q);
         }
         let normals = match &r.normals {
             Some(nr) => {
