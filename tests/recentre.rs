@@ -54,7 +54,11 @@ const FAR: [f64; 3] = [10_000_000.0, -3_500_000.0, 200_000.0];
 /// A jittered 24 × 24 grid of quads, 0.37 units apart, around [`FAR`], as OBJ text whose
 /// numbers are exact f64 values (Rust prints the shortest text that parses back).
 fn far_grid() -> (String, Vec<[f64; 3]>) {
-    let n = 24;
+    far_grid_of(24)
+}
+
+/// The same with `n` × `n` quads.
+fn far_grid_of(n: usize) -> (String, Vec<[f64; 3]>) {
     let mut text = String::from("# a plate far from zero\n");
     let mut v = Vec::new();
     for j in 0..=n {
@@ -363,4 +367,57 @@ fn an_explicit_origin_is_recorded_and_bad_values_are_refused_by_the_command_line
         );
         assert!(!tmp.path().join("bad.oocf").exists());
     }
+}
+
+#[test]
+fn the_out_of_core_build_keeps_the_origin_too() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    // 2 × 90 × 90 = 16 200 triangles: over what a 16 MiB build holds in core.
+    let (text, input) = far_grid_of(90);
+    std::fs::write(tmp.path().join("far.obj"), &text).unwrap_or_else(|e| panic!("{e}"));
+    let report = convert_ok(
+        tmp.path(),
+        &[
+            "far.obj",
+            "-o",
+            "ooc.oocf",
+            "--recentre",
+            "auto",
+            "--mem-limit",
+            "16M",
+        ],
+    );
+    assert!(report["out_of_core"].is_object(), "{report}");
+    let placement = &report["import"]["placement"];
+    let error = num(&placement["max_abs_error"]);
+    assert!(error > 0.0 && error < 1e-5, "{report}");
+    let meta = inspect(tmp.path(), "ooc.oocf")["metadata"].clone();
+    assert_eq!(meta["scene"]["origin"], placement["origin"], "{meta}");
+    assert!(meta["build"]["params"]
+        .to_string()
+        .contains(r#"["recentre","auto"]"#));
+    ok(
+        &oocfmt(&["verify", "--deep", "ooc.oocf"], tmp.path()),
+        "verify",
+    );
+    ok(
+        &oocfmt(
+            &["export", "ooc.oocf", "-o", "back.obj", "--quiet"],
+            tmp.path(),
+        ),
+        "export",
+    );
+    let (back, faces) = read_obj(&tmp.path().join("back.obj"));
+    assert_eq!(faces.len(), 2 * 90 * 90);
+    // Each exported vertex is the grid vertex it rounds to, within the reported error.
+    let mut worst = 0.0f64;
+    for p in &back {
+        let i = ((p[0] - FAR[0]) / 0.37).round() as usize;
+        let j = ((p[1] - FAR[1]) / 0.37).round() as usize;
+        let q = input[j * 91 + i];
+        let d = (0..3).map(|a| (q[a] - p[a]).abs()).fold(0.0, f64::max);
+        assert!(d <= error, "{p:?} is {d} from {q:?}, over {error}");
+        worst = worst.max(d);
+    }
+    assert_eq!(worst, error);
 }
