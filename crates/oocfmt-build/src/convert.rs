@@ -142,7 +142,10 @@ pub fn convert(
     progress.finish_phase();
     let soup = sink.finish()?;
     phases.done("import");
-    let import_report = soup.report.clone();
+    let mut import_report = soup.report.clone();
+    if let Some(w) = precision_warning(&import_report, &soup.bounds) {
+        import_report.warnings.push(w);
+    }
     let chunk_triangles = opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE;
     let mut layout = opts.layout.clone();
     layout.sources = inputs.iter().map(|p| p.display().to_string()).collect();
@@ -196,6 +199,27 @@ pub fn convert(
     report.peak_memory_bytes = peak_memory();
     report.mem_limit_bytes = opts.mem_limit;
     Ok(report)
+}
+
+/// A warning when f32 rounding moved positions by more than about a millionth of the model's
+/// size: a model far from its origin, which `--recentre auto` would have kept exact.
+fn precision_warning(
+    report: &import::ImportReport,
+    bounds: &crate::mesh::Bounds,
+) -> Option<String> {
+    let extent = (0..3)
+        .map(|a| f64::from(bounds.max[a]) - f64::from(bounds.min[a]))
+        .fold(0.0, f64::max);
+    let error = report.placement.max_abs_error;
+    let dropped = report.dropped_total();
+    (extent > 0.0 && error > extent * f64::from(f32::EPSILON) * 8.0).then(|| {
+        format!(
+            "positions were rounded by up to {error:.3e} in f32, {:.1e} of the model's extent \
+             {extent:.3e} ({dropped} triangles dropped in all): the model lies far from its \
+             origin; `--recentre auto` stores positions relative to a nearby origin",
+            error / extent
+        )
+    })
 }
 
 fn import_one(
