@@ -14,7 +14,7 @@ use serde::Serialize;
 
 pub use placement::{PlacementReport, Recentre};
 pub(crate) use sink::compact_materials;
-pub use sink::{MeshSink, PartSchema};
+pub use sink::{Intake, Intaken, MeshSink, MeshStore, PartSchema, Store};
 
 use oocfmt::metadata::Material;
 

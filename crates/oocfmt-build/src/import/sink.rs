@@ -38,40 +38,53 @@ pub struct PartSchema {
     pub materials: Option<Vec<Material>>,
 }
 
-#[derive(Default)]
-pub struct MeshSink {
-    strict: bool,
-    part: Option<PartSchema>,
-    verts: Vec<Vert>,
-    index: HashMap<[u32; 8], u32>,
-    triangles: Vec<[u32; 3]>,
-    materials: Vec<Option<u32>>,
-    used_materials: HashSet<Option<u32>>,
-    table: Vec<Material>,
-    placement: Placement,
-    report: ImportReport,
+/// What a sink does with the triangles the policy admits.
+pub trait Store {
+    /// Keeps one admitted triangle: finite, not degenerate, within the format's limits.
+    fn store(&mut self, t: InputTriangle, at: &Location) -> Result<(), ImportError>;
 }
 
-impl MeshSink {
-    /// `strict`: refuse the first degenerate or broken triangle instead of dropping it.
-    pub fn new(strict: bool) -> MeshSink {
-        MeshSink {
-            strict,
-            ..MeshSink::default()
-        }
-    }
+/// A sink: the bad-input policy and the import report, shared by every kind of sink, in front
+/// of a [`Store`]. It judges each triangle (dropping and counting, or refusing under
+/// `strict`), checks the format's limits where the input's place is still known, numbers
+/// materials, and places positions relative to the scene origin.
+pub struct Intake<S> {
+    strict: bool,
+    placement: Placement,
+    used: HashSet<Option<u32>>,
+    /// The materials triangles use (`None`: no material), in order of first use.
+    used_order: Vec<Option<u32>>,
+    /// Materials as the importers added them.
+    table: Vec<Material>,
+    report: ImportReport,
+    store: S,
+}
 
-    /// A sink for part of a scene whose attributes are fixed by `schema`.
-    pub fn for_part(schema: PartSchema) -> MeshSink {
-        MeshSink {
-            part: Some(schema),
-            ..MeshSink::default()
+/// What an [`Intake`] knows once the import is over.
+pub struct Intaken<S> {
+    pub store: S,
+    pub table: Vec<Material>,
+    pub used_order: Vec<Option<u32>>,
+    pub report: ImportReport,
+}
+
+impl<S> Intake<S> {
+    /// `strict`: refuse the first degenerate or broken triangle instead of dropping it.
+    pub fn with_store(strict: bool, store: S) -> Intake<S> {
+        Intake {
+            strict,
+            placement: Placement::new([0.0; 3]),
+            used: HashSet::default(),
+            used_order: Vec::new(),
+            table: Vec::new(),
+            report: ImportReport::default(),
+            store,
         }
     }
 
     /// Stores positions relative to `origin` (world = origin + stored).
-    pub fn with_origin(self, origin: [f64; 3]) -> MeshSink {
-        MeshSink {
+    pub fn with_origin(self, origin: [f64; 3]) -> Intake<S> {
+        Intake {
             placement: Placement::new(origin),
             ..self
         }
@@ -79,6 +92,23 @@ impl MeshSink {
 
     pub fn report(&self) -> &ImportReport {
         &self.report
+    }
+
+    /// Ends the import; fails when no triangle was kept.
+    pub fn finish_intake(self) -> Result<Intaken<S>, ImportError> {
+        let mut report = self.report;
+        report.placement = self.placement.report();
+        if report.triangles_out == 0 {
+            return Err(ImportError::Empty {
+                dropped: report.dropped_total(),
+            });
+        }
+        Ok(Intaken {
+            store: self.store,
+            table: self.table,
+            used_order: self.used_order,
+            report,
+        })
     }
 
     fn drop_or_fail(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError> {
@@ -92,7 +122,114 @@ impl MeshSink {
         *self.report.dropped.entry(reason).or_default() += 1;
         Ok(())
     }
+}
 
+impl<S: Store> TriangleSink for Intake<S> {
+    fn add_material(&mut self, material: Material) -> Result<u32, ImportError> {
+        self.table.push(material);
+        u32::try_from(self.table.len() - 1)
+            .ok()
+            .filter(|&m| m != u32::MAX)
+            .ok_or(ImportError::Limit {
+                at: Location::default(),
+                what: "materials".into(),
+                limit: u64::from(u32::MAX),
+            })
+    }
+
+    fn push(&mut self, t: InputTriangle, at: &Location) -> Result<(), ImportError> {
+        if let Some(reason) = DropReason::classify(&t.positions) {
+            return self.drop_or_fail(reason, at);
+        }
+        if self.report.triangles_out >= u64::from(u32::MAX) {
+            return Err(ImportError::Limit {
+                at: at.clone(),
+                what: "triangles".into(),
+                limit: u64::from(u32::MAX),
+            });
+        }
+        // The format's material indices are 16 bits: refuse the triangle that needs one more,
+        // where its place is still known.
+        if self.used.insert(t.material) {
+            if self.used.len() > MAX_MATERIALS {
+                return Err(ImportError::Limit {
+                    at: at.clone(),
+                    what: "distinct materials used by triangles".into(),
+                    limit: MAX_MATERIALS as u64,
+                });
+            }
+            self.used_order.push(t.material);
+        }
+        self.store.store(t, at)?;
+        self.report.triangles_in += 1;
+        self.report.triangles_out += 1;
+        Ok(())
+    }
+
+    fn reject(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError> {
+        self.drop_or_fail(reason, at)
+    }
+
+    fn skip(&mut self, what: Skipped, count: u64) {
+        *self.report.skipped.entry(what).or_default() += count;
+    }
+
+    fn warn(&mut self, at: &Location, message: String) {
+        self.report.warnings.push(format!("{at}: {message}"));
+    }
+
+    fn begin_file(&mut self, path: &str) {
+        self.report.files.push(path.to_string());
+    }
+
+    fn place(&mut self, exact: [f64; 3]) -> [f32; 3] {
+        self.placement.place(exact)
+    }
+}
+
+/// Keeps admitted triangles as a de-duplicated in-memory mesh.
+#[derive(Default)]
+pub struct MeshStore {
+    part: Option<PartSchema>,
+    verts: Vec<Vert>,
+    index: HashMap<[u32; 8], u32>,
+    triangles: Vec<[u32; 3]>,
+    materials: Vec<Option<u32>>,
+}
+
+/// The in-memory sink.
+pub type MeshSink = Intake<MeshStore>;
+
+impl Intake<MeshStore> {
+    /// `strict`: refuse the first degenerate or broken triangle instead of dropping it.
+    pub fn new(strict: bool) -> MeshSink {
+        Intake::with_store(strict, MeshStore::default())
+    }
+
+    /// A sink for part of a scene whose attributes are fixed by `schema`.
+    pub fn for_part(schema: PartSchema) -> MeshSink {
+        Intake::with_store(
+            false,
+            MeshStore {
+                part: Some(schema),
+                ..MeshStore::default()
+            },
+        )
+    }
+
+    /// The mesh and the report. Fails on an empty result or on counts past the format's limits.
+    pub fn finish(self) -> Result<(Mesh, ImportReport), ImportError> {
+        let Intaken {
+            store,
+            table,
+            report,
+            ..
+        } = self.finish_intake()?;
+        Ok((store.into_mesh(table)?, report))
+    }
+}
+
+impl MeshStore {
     fn vertex(&mut self, v: Vert) -> u32 {
         let n = v.normal.map_or([u32::MAX; 3], |n| n.map(f32::to_bits));
         let c = v.colour.map_or(u32::MAX, u32::from_le_bytes);
@@ -113,15 +250,7 @@ impl MeshSink {
         })
     }
 
-    /// The mesh and the report. Fails on an empty result or on counts past the format's limits.
-    pub fn finish(self) -> Result<(Mesh, ImportReport), ImportError> {
-        let mut report = self.report;
-        report.placement = self.placement.report();
-        if self.triangles.is_empty() {
-            return Err(ImportError::Empty {
-                dropped: report.dropped_total(),
-            });
-        }
+    fn into_mesh(self, table: Vec<Material>) -> Result<Mesh, ImportError> {
         let part = self.part.unwrap_or_default();
         let any_normals = part.normals || self.verts.iter().any(|v| v.normal.is_some());
         let any_colours = part.colours || self.verts.iter().any(|v| v.colour.is_some());
@@ -155,11 +284,11 @@ impl MeshSink {
             mesh.materials = Some(materials);
             mesh.material_table = table;
         } else if any_materials {
-            let (materials, table) = compact_materials(&self.materials, self.table)?;
+            let (materials, table) = compact_materials(&self.materials, table)?;
             mesh.materials = Some(materials);
             mesh.material_table = table;
         }
-        Ok((mesh, report))
+        Ok(mesh)
     }
 }
 
@@ -212,38 +341,8 @@ fn geometric_normal(p: &[[f32; 3]; 3]) -> [f32; 3] {
     }
 }
 
-impl TriangleSink for MeshSink {
-    fn add_material(&mut self, material: Material) -> Result<u32, ImportError> {
-        self.table.push(material);
-        u32::try_from(self.table.len() - 1).map_err(|_| ImportError::Limit {
-            at: Location::default(),
-            what: "materials".into(),
-            limit: u64::from(u32::MAX),
-        })
-    }
-
-    fn push(&mut self, t: InputTriangle, at: &Location) -> Result<(), ImportError> {
-        if let Some(reason) = DropReason::classify(&t.positions) {
-            return self.drop_or_fail(reason, at);
-        }
-        if self.triangles.len() >= u32::MAX as usize {
-            return Err(ImportError::Limit {
-                at: at.clone(),
-                what: "triangles".into(),
-                limit: u64::from(u32::MAX),
-            });
-        }
-        // The format's material indices are 16 bits: refuse the triangle that needs one more,
-        // where its place is still known.
-        if self.used_materials.insert(t.material) && self.used_materials.len() > MAX_MATERIALS {
-            return Err(ImportError::Limit {
-                at: at.clone(),
-                what: "distinct materials used by triangles".into(),
-                limit: MAX_MATERIALS as u64,
-            });
-        }
-        self.report.triangles_in += 1;
-        self.report.triangles_out += 1;
+impl Store for MeshStore {
+    fn store(&mut self, t: InputTriangle, _at: &Location) -> Result<(), ImportError> {
         let fallback_normal = geometric_normal(&t.positions);
         let mut tri = [0u32; 3];
         for (k, slot) in tri.iter_mut().enumerate() {
@@ -260,26 +359,6 @@ impl TriangleSink for MeshSink {
         self.triangles.push(tri);
         self.materials.push(t.material);
         Ok(())
-    }
-
-    fn reject(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError> {
-        self.drop_or_fail(reason, at)
-    }
-
-    fn skip(&mut self, what: Skipped, count: u64) {
-        *self.report.skipped.entry(what).or_default() += count;
-    }
-
-    fn warn(&mut self, at: &Location, message: String) {
-        self.report.warnings.push(format!("{at}: {message}"));
-    }
-
-    fn begin_file(&mut self, path: &str) {
-        self.report.files.push(path.to_string());
-    }
-
-    fn place(&mut self, exact: [f64; 3]) -> [f32; 3] {
-        self.placement.place(exact)
     }
 }
 

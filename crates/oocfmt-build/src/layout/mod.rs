@@ -26,7 +26,7 @@ use triangles::{TriangleCounts, VertexTable};
 
 /// Blocks compressed at once before they are appended: bounds the memory held by compressed
 /// blocks waiting for their turn.
-const ENCODE_BATCH: usize = 256;
+pub(crate) const ENCODE_BATCH: usize = 256;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct LayoutOptions {
@@ -149,17 +149,28 @@ pub fn write_blocks(
     let mut writer = Writer::create(path, write)?;
     let mut done = 0u64;
     for batch in container.blocks.chunks(ENCODE_BATCH) {
-        let encoded: Vec<EncodedBlock> = batch
-            .par_iter()
-            .map(|b| EncodedBlock::encode(write.codec, b.kind, b.level, b.item_count, &b.raw))
-            .collect::<Result<_, _>>()?;
-        for b in encoded {
-            writer.write_encoded(b)?;
-        }
+        append(&mut writer, write.codec, batch)?;
         done += batch.len() as u64;
         progress(done);
     }
     Ok(writer.finish(&container.metadata)?)
+}
+
+/// Compresses `blocks` in parallel and appends them in order. Callers pass batches of at most
+/// [`ENCODE_BATCH`] blocks, which bounds the memory compressed blocks wait in.
+pub(crate) fn append(
+    writer: &mut Writer,
+    codec: oocfmt::Codec,
+    blocks: &[RawBlock],
+) -> Result<(), oocfmt::Error> {
+    let encoded: Vec<EncodedBlock> = blocks
+        .par_iter()
+        .map(|b| EncodedBlock::encode(codec, b.kind, b.level, b.item_count, &b.raw))
+        .collect::<Result<_, _>>()?;
+    for b in encoded {
+        writer.write_encoded(b)?;
+    }
+    Ok(())
 }
 
 /// Plans and encodes every block (uncompressed) and fills the metadata.

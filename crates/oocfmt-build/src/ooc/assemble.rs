@@ -9,15 +9,11 @@ use std::path::Path;
 
 use oocfmt::records::{Node, TreeletBlock, PROXY_LEN};
 use oocfmt::{BlockKind, EncodedBlock, Metadata, WriteOptions, WriteSummary, Writer};
-use rayon::prelude::*;
 
 use super::chunk::{ChunkOut, SpilledBlock};
 use super::OocError;
-use crate::layout::{LayoutError, RawBlock};
+use crate::layout::{append, LayoutError, RawBlock, ENCODE_BATCH};
 use crate::progress::Progress;
-
-/// Blocks compressed at once before they are appended.
-const ENCODE_BATCH: usize = 256;
 
 /// Where each block of the file comes from, in file order, and the final id of every chunk
 /// block.
@@ -209,13 +205,7 @@ pub fn write(
                 }
             })
             .collect::<Result<_, OocError>>()?;
-        let encoded: Vec<EncodedBlock> = raws
-            .par_iter()
-            .map(|b| EncodedBlock::encode(write.codec, b.kind, b.level, b.item_count, &b.raw))
-            .collect::<Result<_, _>>()?;
-        for b in encoded {
-            writer.write_encoded(b)?;
-        }
+        append(&mut writer, write.codec, &raws)?;
         done += batch.len() as u64;
         progress.advance(done);
     }

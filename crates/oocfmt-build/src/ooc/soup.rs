@@ -14,14 +14,12 @@ use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
-use rustc_hash::FxHashSet as HashSet;
-
 use oocfmt::metadata::Material;
 
 use super::OocError;
-use crate::import::placement::Placement;
 use crate::import::{
-    DropReason, ImportError, ImportReport, InputTriangle, Location, MeshSink, Skipped, TriangleSink,
+    ImportError, ImportReport, InputTriangle, Intake, Intaken, Location, MeshSink, Store,
+    TriangleSink,
 };
 use crate::mesh::{Bounds, Mesh};
 
@@ -214,153 +212,66 @@ impl Soup {
     }
 }
 
-/// A sink that applies the bad-input policy and streams every kept triangle to a spill file.
-pub struct SoupSink {
-    strict: bool,
+/// Streams admitted triangles to a spill file, noting what the scene has.
+pub struct SoupStore {
     writer: SoupWriter,
     bounds: Bounds,
-    materials: Vec<Material>,
-    used: HashSet<Option<u32>>,
-    used_order: Vec<Option<u32>>,
     normals: bool,
     colours: bool,
-    placement: Placement,
-    report: ImportReport,
 }
 
-/// Material indices in triangle blocks are 16-bit (spec §8).
-const MAX_MATERIALS: usize = 1 << 16;
-
-impl SoupSink {
-    pub fn create(path: &Path, strict: bool) -> Result<SoupSink, OocError> {
-        Ok(SoupSink {
-            strict,
-            writer: SoupWriter::create(path)?,
-            bounds: Bounds::EMPTY,
-            materials: Vec::new(),
-            used: HashSet::default(),
-            used_order: Vec::new(),
-            normals: false,
-            colours: false,
-            placement: Placement::new([0.0; 3]),
-            report: ImportReport::default(),
-        })
-    }
-
-    /// Stores positions relative to `origin` (world = origin + stored).
-    pub fn with_origin(self, origin: [f64; 3]) -> SoupSink {
-        SoupSink {
-            placement: Placement::new(origin),
-            ..self
-        }
-    }
-
-    /// Fails on an empty result, like the in-memory sink.
-    pub fn finish(mut self) -> Result<Soup, OocError> {
-        self.report.placement = self.placement.report();
-        if self.report.triangles_out == 0 {
-            return Err(ImportError::Empty {
-                dropped: self.report.dropped_total(),
-            }
-            .into());
-        }
-        let (path, count) = self.writer.finish()?;
-        Ok(Soup {
-            path,
-            count,
-            bounds: self.bounds,
-            materials: self.materials,
-            used_materials: self.used_order,
-            normals: self.normals,
-            colours: self.colours,
-            report: self.report,
-        })
-    }
-
-    fn drop_or_fail(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError> {
-        self.report.triangles_in += 1;
-        if self.strict {
-            return Err(ImportError::Strict {
-                at: at.clone(),
-                reason,
-            });
-        }
-        *self.report.dropped.entry(reason).or_default() += 1;
-        Ok(())
-    }
-}
-
-impl TriangleSink for SoupSink {
-    fn add_material(&mut self, material: Material) -> Result<u32, ImportError> {
-        self.materials.push(material);
-        u32::try_from(self.materials.len() - 1)
-            .ok()
-            .filter(|&m| m != NO_MATERIAL)
-            .ok_or(ImportError::Limit {
-                at: Location::default(),
-                what: "materials".into(),
-                limit: u64::from(u32::MAX),
-            })
-    }
-
-    fn push(&mut self, t: InputTriangle, at: &Location) -> Result<(), ImportError> {
-        if let Some(reason) = DropReason::classify(&t.positions) {
-            return self.drop_or_fail(reason, at);
-        }
-        if self.report.triangles_out >= u64::from(u32::MAX) {
-            return Err(ImportError::Limit {
-                at: at.clone(),
-                what: "triangles".into(),
-                limit: u64::from(u32::MAX),
-            });
-        }
-        if self.used.insert(t.material) {
-            if self.used.len() > MAX_MATERIALS {
-                return Err(ImportError::Limit {
-                    at: at.clone(),
-                    what: "distinct materials used by triangles".into(),
-                    limit: MAX_MATERIALS as u64,
-                });
-            }
-            self.used_order.push(t.material);
-        }
-        self.writer
-            .push(&SoupTriangle {
-                triangle: t,
-                primary: true,
-            })
-            .map_err(|e| ImportError::Io {
-                path: self.writer.path.display().to_string(),
-                source: std::io::Error::other(e.to_string()),
-            })?;
+impl Store for SoupStore {
+    fn store(&mut self, t: InputTriangle, _at: &Location) -> Result<(), ImportError> {
+        let record = SoupTriangle {
+            triangle: t,
+            primary: true,
+        };
+        self.writer.push(&record).map_err(|e| ImportError::Io {
+            path: self.writer.path.display().to_string(),
+            source: std::io::Error::other(e.to_string()),
+        })?;
         for p in t.positions {
             self.bounds.extend(p);
         }
         self.normals |= t.normals.is_some();
         self.colours |= t.colours.is_some();
-        self.report.triangles_in += 1;
-        self.report.triangles_out += 1;
         Ok(())
     }
+}
 
-    fn reject(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError> {
-        self.drop_or_fail(reason, at)
+/// The sink of `oocfmt convert`: the shared bad-input policy in front of a spill file.
+pub type SoupSink = Intake<SoupStore>;
+
+impl Intake<SoupStore> {
+    pub fn create(path: &Path, strict: bool) -> Result<SoupSink, OocError> {
+        let store = SoupStore {
+            writer: SoupWriter::create(path)?,
+            bounds: Bounds::EMPTY,
+            normals: false,
+            colours: false,
+        };
+        Ok(Intake::with_store(strict, store))
     }
 
-    fn skip(&mut self, what: Skipped, count: u64) {
-        *self.report.skipped.entry(what).or_default() += count;
-    }
-
-    fn warn(&mut self, at: &Location, message: String) {
-        self.report.warnings.push(format!("{at}: {message}"));
-    }
-
-    fn begin_file(&mut self, path: &str) {
-        self.report.files.push(path.to_string());
-    }
-
-    fn place(&mut self, exact: [f64; 3]) -> [f32; 3] {
-        self.placement.place(exact)
+    /// Fails on an empty result, like the in-memory sink.
+    pub fn finish(self) -> Result<Soup, OocError> {
+        let Intaken {
+            store,
+            table,
+            used_order,
+            report,
+        } = self.finish_intake()?;
+        let (path, count) = store.writer.finish()?;
+        Ok(Soup {
+            path,
+            count,
+            bounds: store.bounds,
+            materials: table,
+            used_materials: used_order,
+            normals: store.normals,
+            colours: store.colours,
+            report,
+        })
     }
 }
 

@@ -3,8 +3,8 @@
 
 use oocfmt::records::Voxel;
 
-use super::chunk::{answer_rays, PendingRay};
-use super::top::{finish_top_lod, TopLod};
+use super::chunk::answer_rays;
+use super::top::{finish_top_lod, record_rays, TopLod};
 use crate::kdtree::{build_cell, KdBuildOptions, KdTree, NodeId};
 use crate::lod::{sample_cell, shade, DEFAULT_VOXEL_THRESHOLD};
 use crate::mesh::{Bounds, Mesh};
@@ -75,16 +75,7 @@ fn chunk_of(mesh: &Mesh, cell: Bounds) -> (Mesh, KdTree) {
 fn sampling_in_pieces_matches_sampling_the_whole() {
     let mesh = hull_with_cargo();
     let cell = mesh.bounds();
-    let mut rays = Vec::new();
-    sample_cell(cell, DEFAULT_VOXEL_THRESHOLD, 0.0, &mut |ray, t1, eps| {
-        rays.push(PendingRay {
-            ray: *ray,
-            t1,
-            eps,
-            best: None,
-        });
-        None
-    });
+    let mut rays = record_rays(cell, DEFAULT_VOXEL_THRESHOLD);
     assert_eq!(rays.len(), 6 * 64 + 12 * 16);
     // The reference: every triangle tested against every ray.
     let mut reference = rays.iter();

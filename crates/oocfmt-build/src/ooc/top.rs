@@ -39,20 +39,10 @@ pub fn top_lod_nodes(top: &TopTree, bounds: Bounds, height: u8, threshold: f32) 
             continue;
         };
         if depth % h == h - 1 {
-            let mut rays = Vec::new();
-            sample_cell(cell, threshold, 0.0, &mut |ray, t1, eps| {
-                rays.push(PendingRay {
-                    ray: *ray,
-                    t1,
-                    eps,
-                    best: None,
-                });
-                None
-            });
             out.push(TopLod {
                 node: id,
                 cell,
-                rays,
+                rays: record_rays(cell, threshold),
             });
         }
         let (lo, hi) = cell.split(usize::from(axis), split);
@@ -64,6 +54,21 @@ pub fn top_lod_nodes(top: &TopTree, bounds: Bounds, height: u8, threshold: f32) 
     }
     out.sort_by_key(|t| t.node);
     out
+}
+
+/// The rays that sample `cell`, in the order [`sample_cell`] casts them, not yet answered.
+pub fn record_rays(cell: Bounds, threshold: f32) -> Vec<PendingRay> {
+    let mut rays = Vec::new();
+    sample_cell(cell, threshold, 0.0, &mut |ray, t1, eps| {
+        rays.push(PendingRay {
+            ray: *ray,
+            t1,
+            eps,
+            best: None,
+        });
+        None
+    });
+    rays
 }
 
 /// The LOD data of a top LOD node from its answered rays.
