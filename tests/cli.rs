@@ -1,19 +1,11 @@
 //! End-to-end tests of the `oocfmt` binary: spec vectors against their expected `inspect --json`,
 //! exit codes, verify reports, and the demo. Set OOCFMT_BLESS=1 to rewrite expected outputs.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn oocfmt(args: &[&str], cwd: &Path) -> Output {
-    match Command::new(env!("CARGO_BIN_EXE_oocfmt"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-    {
-        Ok(o) => o,
-        Err(e) => panic!("cannot run oocfmt: {e}"),
-    }
-}
+use common::*;
+
+use std::path::{Path, PathBuf};
 
 fn vectors_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../spec/vectors")
@@ -52,28 +44,6 @@ fn golden(expected: &Path, actual: &str) {
         "{} differs from the output",
         expected.display()
     );
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// Runs `oocfmt convert ARGS --quiet --report-json report.json` in `dir`, asserts success and
-/// returns the report.
-fn convert_ok(dir: &Path, args: &[&str]) -> serde_json::Value {
-    let mut all = vec!["convert"];
-    all.extend_from_slice(args);
-    all.extend_from_slice(&["--quiet", "--report-json", "report.json"]);
-    let o = oocfmt(&all, dir);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{args:?}: {}{}",
-        stdout(&o),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let bytes = std::fs::read(dir.join("report.json")).unwrap_or_default();
-    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("{args:?}: report: {e}"))
 }
 
 #[test]
@@ -493,16 +463,7 @@ fn generated_scenes_convert_verify_and_export_without_loss() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     for (scene, tris) in [("mandelbulb", "3000"), ("cad", "3000")] {
         let obj = format!("{scene}.obj");
-        let g = oocfmt(
-            &["gen", scene, "--tris", tris, "-o", &obj, "--quiet"],
-            tmp.path(),
-        );
-        assert_eq!(
-            g.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&g.stderr)
-        );
+        gen(tmp.path(), scene, tris, &obj);
         let oocf = format!("{scene}.oocf");
         let report = convert_ok(tmp.path(), &[&obj, "-o", &oocf, "--max-leaf", "4"]);
         assert_eq!(
@@ -544,16 +505,7 @@ fn a_scene_over_the_memory_limit_converts_out_of_core_without_loss() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     for (scene, tris) in [("mandelbulb", "40000"), ("cad", "30000")] {
         let obj = format!("{scene}.obj");
-        let g = oocfmt(
-            &["gen", scene, "--tris", tris, "-o", &obj, "--quiet"],
-            tmp.path(),
-        );
-        assert_eq!(
-            g.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&g.stderr)
-        );
+        gen(tmp.path(), scene, tris, &obj);
         let mut exported = Vec::new();
         for (name, limit) in [("in-core", "8G"), ("chunked", "16M")] {
             let oocf = format!("{scene}-{name}.oocf");

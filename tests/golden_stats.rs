@@ -6,33 +6,13 @@
 //! LOD or layout code changes on purpose. Then check that the new figures are what the change
 //! meant, and re-bless: `OOCFMT_BLESS=1 cargo test -p oocfmt-cli --test golden_stats`.
 
+mod common;
+
+use common::*;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use serde_json::{json, Value};
-
-fn oocfmt(args: &[&str], cwd: &Path) -> Output {
-    match Command::new(env!("CARGO_BIN_EXE_oocfmt"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-    {
-        Ok(o) => o,
-        Err(e) => panic!("cannot run oocfmt: {e}"),
-    }
-}
-
-fn run_ok(args: &[&str], cwd: &Path) -> Output {
-    let o = oocfmt(args, cwd);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "oocfmt {args:?}: {}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    o
-}
 
 fn golden_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/golden")

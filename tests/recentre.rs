@@ -2,40 +2,12 @@
 //! through convert and export, the error the report gives bounds what export gives back, and
 //! without re-centring positions stay bit-exact.
 
+mod common;
+
+use common::*;
+
 use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn oocfmt(args: &[&str], cwd: &Path) -> Output {
-    match Command::new(env!("CARGO_BIN_EXE_oocfmt"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-    {
-        Ok(o) => o,
-        Err(e) => panic!("cannot run oocfmt: {e}"),
-    }
-}
-
-fn ok(o: &Output, what: &str) {
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{what}: {}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
-
-/// Runs `oocfmt convert ARGS --quiet --report-json report.json` in `dir` and returns the report.
-fn convert_ok(dir: &Path, args: &[&str]) -> serde_json::Value {
-    let mut all = vec!["convert"];
-    all.extend_from_slice(args);
-    all.extend_from_slice(&["--quiet", "--report-json", "report.json"]);
-    ok(&oocfmt(&all, dir), &format!("convert {args:?}"));
-    let bytes = std::fs::read(dir.join("report.json")).unwrap_or_default();
-    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("{args:?}: report: {e}"))
-}
 
 fn inspect(dir: &Path, file: &str) -> serde_json::Value {
     let o = oocfmt(&["inspect", "--json", file], dir);
