@@ -47,6 +47,10 @@ pub struct Args {
     /// Also write the frame's figures as JSON to this file
     #[arg(long)]
     pub stats_json: Option<PathBuf>,
+    /// Render the view this many times with the same cache and report the last frame (with
+    /// 2 or more: figures with a warm cache)
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub repeat: u32,
     /// Render threads (default: all cores)
     #[arg(long)]
     pub threads: Option<usize>,
@@ -121,7 +125,11 @@ pub fn run(a: &Args) -> CliResult {
         poe: a.poe,
         ..RenderOptions::default()
     };
-    let (image, stats) = render(&scene, &cache, &camera, &opts).map_err(cli_error)?;
+    let mut frame = render(&scene, &cache, &camera, &opts).map_err(cli_error)?;
+    for _ in 1..a.repeat {
+        frame = render(&scene, &cache, &camera, &opts).map_err(cli_error)?;
+    }
+    let (image, stats) = frame;
     write_png(&a.output, image.width, image.height, &image.rgb).map_err(cli_error)?;
     if let Some(d) = &a.depth_out {
         write_pfm(d, image.width, image.height, &image.depth).map_err(cli_error)?;

@@ -32,25 +32,38 @@ pub struct Frame {
 pub const DEFAULT_FOV_Y: f64 = 45.0;
 
 impl Camera {
-    /// Looks at the centre of the box [lo, hi] from a direction above and to the side, far
-    /// enough that the box's bounding sphere fits the narrower of the two fields of view.
+    /// Looks at the centre of the box [lo, hi] from a direction above and to the side, from
+    /// the nearest distance at which all eight corners of the box lie inside the view.
     pub fn framing(lo: [f32; 3], hi: [f32; 3], width: u32, height: u32) -> Camera {
         let c = [0, 1, 2].map(|k| (f64::from(lo[k]) + f64::from(hi[k])) / 2.0);
-        let r = (0..3)
-            .map(|k| (f64::from(hi[k]) - f64::from(lo[k])).powi(2))
-            .sum::<f64>()
-            .sqrt()
-            / 2.0;
-        let r = if r > 0.0 { r } else { 1.0 };
+        let half = [0, 1, 2].map(|k| (f64::from(hi[k]) - f64::from(lo[k])) / 2.0);
+        let u = normalize([0.55, 0.45, 0.7]);
+        let up = [0.0, 1.0, 0.0];
+        let right = normalize(cross(neg(u), up));
+        let cam_up = cross(right, neg(u));
         let aspect = f64::from(width.max(1)) / f64::from(height.max(1));
-        let half_y = (DEFAULT_FOV_Y / 2.0).to_radians();
-        let half_x = (half_y.tan() * aspect).atan();
-        let dist = r / half_y.min(half_x).sin() * 1.02;
-        let d = normalize([0.55, 0.45, 0.7]);
+        let tan_y = (DEFAULT_FOV_Y / 2.0).to_radians().tan();
+        let tan_x = tan_y * aspect;
+        let mut dist: f64 = 0.0;
+        for corner in 0..8 {
+            let q = [0, 1, 2].map(|k| {
+                if corner >> k & 1 == 1 {
+                    half[k]
+                } else {
+                    -half[k]
+                }
+            });
+            let along = dot(q, u);
+            dist = dist
+                .max(along + dot(q, right).abs() / tan_x)
+                .max(along + dot(q, cam_up).abs() / tan_y);
+        }
+        // A margin of a few pixels; a point-like scene still gets a distance.
+        let dist = if dist > 0.0 { dist * 1.05 } else { 1.0 };
         Camera {
-            eye: [0, 1, 2].map(|k| c[k] + d[k] * dist),
+            eye: [0, 1, 2].map(|k| c[k] + u[k] * dist),
             look_at: c,
-            up: [0.0, 1.0, 0.0],
+            up,
             fov_y: DEFAULT_FOV_Y,
             width,
             height,
@@ -120,6 +133,14 @@ impl Frame {
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn neg(a: [f64; 3]) -> [f64; 3] {
+    a.map(|c| -c)
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

@@ -19,7 +19,7 @@
 //!   the split plane: it visits the side its origin lies on, both sides when the origin lies on
 //!   the plane. No 0 × inf product is formed.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 use std::sync::Arc;
 
 use oocfmt::records::{Sample, Voxel, MAX_TREE_DEPTH, PROXY_DIRECTIONS};
