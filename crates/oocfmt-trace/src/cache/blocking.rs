@@ -130,13 +130,25 @@ impl BlockingCache {
     }
 }
 
+impl BlockingCache {
+    /// A block referenced as one kind after it was loaded as another: the file is malformed
+    /// there, and the block is missing for good for both uses.
+    fn wrong_kind<T>(&self, id: u32, is: &str, wanted: &str) -> Option<T> {
+        let mut t = self.lock();
+        t.missing
+            .entry(id)
+            .or_insert_with(|| format!("a {is} block where a {wanted} block was expected"));
+        None
+    }
+}
+
 impl BlockCache for BlockingCache {
     fn treelets(&self, id: u32) -> Option<Arc<TreeletData>> {
         match self.get(id, |s| {
             s.load_treelets(id).map(|d| Data::Treelets(Arc::new(d)))
         })? {
             Data::Treelets(d) => Some(d),
-            Data::Triangles(_) => None,
+            Data::Triangles(_) => self.wrong_kind(id, "triangle", "treelet"),
         }
     }
 
@@ -145,7 +157,7 @@ impl BlockCache for BlockingCache {
             s.load_triangles(id).map(|d| Data::Triangles(Arc::new(d)))
         })? {
             Data::Triangles(d) => Some(d),
-            Data::Treelets(_) => None,
+            Data::Treelets(_) => self.wrong_kind(id, "treelet", "triangle"),
         }
     }
 
