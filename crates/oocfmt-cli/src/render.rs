@@ -1,5 +1,6 @@
 //! `oocfmt render`: one frame of a container with the reference CPU ray tracer.
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -142,7 +143,10 @@ pub fn run(a: &Args) -> CliResult {
         })?;
     }
     let p = &stats.primary;
-    println!(
+    // A closed stdout (`| head`) is not an error of the render: the files are written.
+    let mut out = std::io::stdout().lock();
+    let _ = writeln!(
+        out,
         "wrote {} ({}x{}, --poe {}): {:.1} ms, {:.2} Mrays/s on {} threads",
         a.output.display(),
         image.width,
@@ -152,12 +156,14 @@ pub fn run(a: &Args) -> CliResult {
         stats.rays_per_second / 1e6,
         stats.threads
     );
-    println!(
+    let _ = writeln!(
+        out,
         "primary rays: {} triangle, {} voxel, {} proxy, {} miss",
         p.triangle, p.voxel, p.proxy, p.miss
     );
     let c = &stats.cache;
-    println!(
+    let _ = writeln!(
+        out,
         "blocks: {} loaded, {} evicted, {:.1} MiB resident (peak {:.1} MiB of {} MiB)",
         c.blocks_loaded,
         c.blocks_evicted,

@@ -19,16 +19,13 @@ pub enum DNode {
         left: u32,
         right: u32,
     },
+    /// The LOD fields live in [`TreeletData::lods`], so every node fits 16 bytes: the inner
+    /// nodes the traversal mostly reads pack four to a cache line.
     Lod {
         axis: u8,
         split: f32,
-        radius: f32,
-        /// Treelet indices in `child_block`, [`NONE`] for an empty child.
-        left: u32,
-        right: u32,
-        child_block: u32,
-        voxel: Voxel,
-        proxy: Option<u32>,
+        /// Index in [`TreeletData::lods`].
+        lod: u32,
     },
     Leaf {
         first: u16,
@@ -37,10 +34,23 @@ pub enum DNode {
     },
 }
 
+/// The rest of a LOD node.
+#[derive(Clone, Copy, Debug)]
+pub struct Lod {
+    pub radius: f32,
+    /// Treelet indices in `child_block`, [`NONE`] for an empty child.
+    pub left: u32,
+    pub right: u32,
+    pub child_block: u32,
+    pub voxel: Voxel,
+    pub proxy: Option<u32>,
+}
+
 /// A decoded treelet block.
 #[derive(Debug)]
 pub struct TreeletData {
     pub nodes: Vec<DNode>,
+    pub lods: Vec<Lod>,
     /// Node index of each treelet's root.
     pub roots: Vec<u32>,
 }
@@ -76,6 +86,7 @@ impl TreeletData {
             }
         };
         let mut nodes = Vec::with_capacity(order.len());
+        let mut lods = Vec::new();
         for &(pos, node) in &order {
             nodes.push(match node {
                 Node::Basic {
@@ -101,15 +112,18 @@ impl TreeletData {
                     proxy,
                 } => {
                     let right_index = child_treelet + u32::from(left_present);
-                    DNode::Lod {
-                        axis,
-                        split,
+                    lods.push(Lod {
                         radius,
                         left: if left_present { child_treelet } else { NONE },
                         right: if right_present { right_index } else { NONE },
                         child_block,
                         voxel: tb.voxel(voxel_offset).map_err(|e| e.in_block(block.id))?,
                         proxy: (proxy != NO_PROXY).then_some(proxy),
+                    });
+                    DNode::Lod {
+                        axis,
+                        split,
+                        lod: (lods.len() - 1) as u32,
                     }
                 }
                 Node::Leaf {
@@ -130,13 +144,14 @@ impl TreeletData {
             })
             .collect::<Result<Vec<_>>>()
             .map_err(|e| e.in_block(block.id))?;
-        Ok(TreeletData { nodes, roots })
+        Ok(TreeletData { nodes, lods, roots })
     }
 
     /// Bytes this block holds in memory, for the cache budget.
     pub fn bytes(&self) -> usize {
         std::mem::size_of::<Self>()
             + self.nodes.capacity() * std::mem::size_of::<DNode>()
+            + self.lods.capacity() * std::mem::size_of::<Lod>()
             + self.roots.capacity() * 4
     }
 }
@@ -225,5 +240,13 @@ impl TriangleData {
             + self.normals.as_ref().map_or(0, |v| v.capacity() * 36)
             + self.colours.as_ref().map_or(0, |v| v.capacity() * 36)
             + self.materials.as_ref().map_or(0, |v| v.capacity() * 2)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_node_is_16_bytes() {
+        assert_eq!(std::mem::size_of::<super::DNode>(), 16);
     }
 }

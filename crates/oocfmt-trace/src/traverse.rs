@@ -24,7 +24,7 @@ use std::sync::Arc;
 
 use oocfmt::records::{Sample, Voxel, MAX_TREE_DEPTH, PROXY_DIRECTIONS};
 
-use crate::blocks::{DNode, TreeletData, TriangleData, NONE};
+use crate::blocks::{DNode, Lod, TreeletData, TriangleData, NONE};
 use crate::cache::BlockCache;
 use crate::intersect::{major_axis, ray_box, Ray};
 use crate::scene::Scene;
@@ -219,13 +219,19 @@ impl<'a> Tracer<'a> {
                     DNode::Lod {
                         axis: a,
                         split,
-                        radius,
-                        left,
-                        right,
-                        child_block,
-                        voxel,
-                        proxy,
+                        lod,
                     } => {
+                        let Some(&Lod {
+                            radius,
+                            left,
+                            right,
+                            child_block,
+                            voxel,
+                            proxy,
+                        }) = cur.lods.get(lod as usize)
+                        else {
+                            break;
+                        };
                         last = Some(LastVoxel { voxel, t: t0, axis });
                         if self.lod_c > 0.0 && radius <= t0 * self.lod_c {
                             offer(
