@@ -39,6 +39,21 @@ pub struct ConvertOptions {
     pub recentre: Recentre,
 }
 
+impl Default for ConvertOptions {
+    /// Default options, with half the physical memory (4 GiB where it is unknown) as the limit.
+    fn default() -> Self {
+        ConvertOptions {
+            layout: LayoutOptions::default(),
+            kd: KdBuildOptions::default(),
+            strict: false,
+            mem_limit: crate::report::total_memory().map_or(4 << 30, |m| m / 2),
+            obj: Default::default(),
+            gltf: Default::default(),
+            recentre: Recentre::default(),
+        }
+    }
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum ConvertError {
     #[error(transparent)]

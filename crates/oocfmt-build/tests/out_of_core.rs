@@ -10,13 +10,8 @@ use oocfmt_build::progress::NoProgress;
 
 fn options(chunk_triangles: u64) -> ConvertOptions {
     ConvertOptions {
-        layout: Default::default(),
-        kd: Default::default(),
-        strict: false,
         mem_limit: chunk_triangles * BYTES_PER_TRIANGLE_IN_CORE,
-        obj: Default::default(),
-        gltf: Default::default(),
-        recentre: Default::default(),
+        ..ConvertOptions::default()
     }
 }
 

@@ -12,6 +12,7 @@ mod hexdump;
 mod inspect;
 mod inspect_block;
 mod progress;
+mod render;
 mod verify;
 
 use std::process::ExitCode;
@@ -46,6 +47,8 @@ enum Command {
     Gen(gen::Args),
     /// Build a container from the built-in demo scene, then inspect and verify it
     Demo(demo::Args),
+    /// Ray trace one frame of a container to PNG (LOD by pixels of error)
+    Render(render::Args),
 }
 
 fn main() -> ExitCode {
@@ -64,6 +67,7 @@ fn main() -> ExitCode {
         Command::Export(a) => export::run(&a),
         Command::Gen(a) => gen::run(&a),
         Command::Demo(a) => demo::run(&a),
+        Command::Render(a) => render::run(&a),
     };
     match result {
         Ok(code) => ExitCode::from(code),

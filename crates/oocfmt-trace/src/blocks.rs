@@ -1,0 +1,252 @@
+//! Blocks decoded once into the shapes the traversal reads: nodes with child indices instead
+//! of byte offsets, voxels unpacked, triangles as three positions each. Decoding validates
+//! every reference inside the block, so the traversal indexes with `get` and never fails on a
+//! block that decoded.
+
+use oocfmt::records::triangle::oct_decode;
+use oocfmt::records::{Node, TreeletBlock, TriangleBlock, Voxel, NO_PROXY};
+use oocfmt::{Block, Code, Error, Result};
+
+/// No child in [`DNode::Inner`].
+pub const NONE: u32 = u32::MAX;
+
+#[derive(Clone, Copy, Debug)]
+pub enum DNode {
+    Inner {
+        axis: u8,
+        split: f32,
+        /// Node indices in the same block, [`NONE`] for an empty child.
+        left: u32,
+        right: u32,
+    },
+    /// The LOD fields live in [`TreeletData::lods`], so every node fits 16 bytes: the inner
+    /// nodes the traversal mostly reads pack four to a cache line.
+    Lod {
+        axis: u8,
+        split: f32,
+        /// Index in [`TreeletData::lods`].
+        lod: u32,
+    },
+    Leaf {
+        first: u16,
+        count: u16,
+        block: u32,
+    },
+}
+
+/// The rest of a LOD node.
+#[derive(Clone, Copy, Debug)]
+pub struct Lod {
+    pub radius: f32,
+    /// Treelet indices in `child_block`, [`NONE`] for an empty child.
+    pub left: u32,
+    pub right: u32,
+    pub child_block: u32,
+    pub voxel: Voxel,
+    pub proxy: Option<u32>,
+}
+
+/// A decoded treelet block.
+#[derive(Debug)]
+pub struct TreeletData {
+    pub nodes: Vec<DNode>,
+    pub lods: Vec<Lod>,
+    /// Node index of each treelet's root.
+    pub roots: Vec<u32>,
+}
+
+impl TreeletData {
+    pub fn decode(block: &Block) -> Result<TreeletData> {
+        let tb = block.treelets()?;
+        let slots = tb.node_area().len() / 8;
+        // Node index by 8-byte unit; `walk` checks the preorder layout, so every child offset
+        // lands on a node of the same treelet.
+        let mut index = vec![NONE; slots];
+        let mut order = Vec::new();
+        tb.walk(|_, pos, node| {
+            if let Some(slot) = index.get_mut(pos / 8) {
+                *slot = order.len() as u32;
+            }
+            order.push((pos, *node));
+            Ok(())
+        })
+        .map_err(|e| e.in_block(block.id))?;
+        let child = |pos: usize, units: u16| -> Result<u32> {
+            if units == 0 {
+                return Ok(NONE);
+            }
+            let at = TreeletBlock::child_pos(pos, units) / 8;
+            match index.get(at) {
+                Some(&i) if i != NONE => Ok(i),
+                _ => Err(Error::malformed(
+                    Code::NodeChild,
+                    format!("node at {pos}: child at unit {at} is not a node"),
+                )
+                .in_block(block.id)),
+            }
+        };
+        let mut nodes = Vec::with_capacity(order.len());
+        let mut lods = Vec::new();
+        for &(pos, node) in &order {
+            nodes.push(match node {
+                Node::Basic {
+                    axis,
+                    split,
+                    left,
+                    right,
+                } => DNode::Inner {
+                    axis,
+                    split,
+                    left: child(pos, left)?,
+                    right: child(pos, right)?,
+                },
+                Node::Lod {
+                    axis,
+                    split,
+                    radius,
+                    left_present,
+                    right_present,
+                    child_treelet,
+                    child_block,
+                    voxel_offset,
+                    proxy,
+                } => {
+                    let right_index = child_treelet + u32::from(left_present);
+                    lods.push(Lod {
+                        radius,
+                        left: if left_present { child_treelet } else { NONE },
+                        right: if right_present { right_index } else { NONE },
+                        child_block,
+                        voxel: tb.voxel(voxel_offset).map_err(|e| e.in_block(block.id))?,
+                        proxy: (proxy != NO_PROXY).then_some(proxy),
+                    });
+                    DNode::Lod {
+                        axis,
+                        split,
+                        lod: (lods.len() - 1) as u32,
+                    }
+                }
+                Node::Leaf {
+                    count,
+                    first,
+                    block,
+                } => DNode::Leaf {
+                    first,
+                    count,
+                    block,
+                },
+            });
+        }
+        let roots = (0..tb.treelet_count())
+            .map(|t| {
+                let span = tb.treelet_span(t)?;
+                Ok(index.get(span.start / 8).copied().unwrap_or(NONE))
+            })
+            .collect::<Result<Vec<_>>>()
+            .map_err(|e| e.in_block(block.id))?;
+        Ok(TreeletData { nodes, lods, roots })
+    }
+
+    /// Bytes this block holds in memory, for the cache budget.
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.nodes.capacity() * std::mem::size_of::<DNode>()
+            + self.lods.capacity() * std::mem::size_of::<Lod>()
+            + self.roots.capacity() * 4
+    }
+}
+
+/// A decoded triangle block.
+#[derive(Debug)]
+pub struct TriangleData {
+    /// Triangle index by list entry, each < the triangle count.
+    pub list: Vec<u16>,
+    pub positions: Vec<[[f32; 3]; 3]>,
+    /// Per corner, when the scene has vertex normals.
+    pub normals: Option<Vec<[[f32; 3]; 3]>>,
+    /// Per corner, linear RGB in 0..=1, when the scene has vertex colours.
+    pub colours: Option<Vec<[[f32; 3]; 3]>>,
+    pub materials: Option<Vec<u16>>,
+}
+
+impl TriangleData {
+    pub fn decode(block: &Block, attrs: u16) -> Result<TriangleData> {
+        let tb: TriangleBlock<'_> = block.triangles(attrs)?;
+        tb.check_contents().map_err(|e| e.in_block(block.id))?;
+        let in_block = |e: Error| e.in_block(block.id);
+        let vertices = (0..tb.vertex_count())
+            .map(|i| tb.vertex(i))
+            .collect::<Result<Vec<_>>>()
+            .map_err(in_block)?;
+        let list = (0..tb.list_count())
+            .map(|i| tb.list(i))
+            .collect::<Result<Vec<_>>>()
+            .map_err(in_block)?;
+        let n = tb.triangle_count();
+        let mut positions = Vec::with_capacity(n);
+        let has_normals = vertices.first().is_some_and(|v| v.normal.is_some());
+        let has_colours = vertices.first().is_some_and(|v| v.colour.is_some());
+        let mut normals = has_normals.then(|| Vec::with_capacity(n));
+        let mut colours = has_colours.then(|| Vec::with_capacity(n));
+        let mut materials = None;
+        for i in 0..n {
+            let t = tb.triangle(i).map_err(in_block)?;
+            let corner = |k: usize| {
+                vertices.get(usize::from(t.v[k])).ok_or_else(|| {
+                    Error::malformed(
+                        Code::TriangleIndex,
+                        format!("triangle {i}: vertex {} of {}", t.v[k], vertices.len()),
+                    )
+                    .in_block(block.id)
+                })
+            };
+            let vs = [corner(0)?, corner(1)?, corner(2)?];
+            positions.push(vs.map(|v| v.position));
+            if let Some(ns) = normals.as_mut() {
+                ns.push(vs.map(|v| v.normal.map(oct_decode).unwrap_or([0.0, 0.0, 1.0])));
+            }
+            if let Some(cs) = colours.as_mut() {
+                cs.push(vs.map(|v| {
+                    let c = v.colour.unwrap_or([255; 4]);
+                    [c[0], c[1], c[2]].map(|x| f32::from(x) / 255.0)
+                }));
+            }
+            if let Some(m) = t.material {
+                materials
+                    .get_or_insert_with(|| Vec::with_capacity(n))
+                    .push(m);
+            }
+        }
+        if list.iter().any(|&t| usize::from(t) >= n) {
+            return Err(Error::malformed(
+                Code::TriangleIndex,
+                format!("a list entry names a triangle past the {n} of the block"),
+            )
+            .in_block(block.id));
+        }
+        Ok(TriangleData {
+            list,
+            positions,
+            normals,
+            colours,
+            materials,
+        })
+    }
+
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.list.capacity() * 2
+            + self.positions.capacity() * 36
+            + self.normals.as_ref().map_or(0, |v| v.capacity() * 36)
+            + self.colours.as_ref().map_or(0, |v| v.capacity() * 36)
+            + self.materials.as_ref().map_or(0, |v| v.capacity() * 2)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_node_is_16_bytes() {
+        assert_eq!(std::mem::size_of::<super::DNode>(), 16);
+    }
+}

@@ -1,0 +1,195 @@
+//! A pinhole camera. Positions are in the container's stored coordinates (world minus the
+//! metadata origin). One ray per pixel through the pixel centre (x + 0.5, y + 0.5), row 0 at
+//! the top.
+
+use crate::error::TraceError;
+use crate::intersect::Ray;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub eye: [f64; 3],
+    pub look_at: [f64; 3],
+    pub up: [f64; 3],
+    /// Vertical field of view, degrees.
+    pub fov_y: f64,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// The camera's frame, ready to make rays.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    eye: [f32; 3],
+    forward: [f64; 3],
+    right: [f64; 3],
+    up: [f64; 3],
+    /// tan(fov_y / 2).
+    tan_half: f64,
+    width: u32,
+    height: u32,
+}
+
+pub const DEFAULT_FOV_Y: f64 = 45.0;
+
+impl Camera {
+    /// Looks at the centre of the box [lo, hi] from a direction above and to the side, from
+    /// the nearest distance at which all eight corners of the box lie inside the view.
+    pub fn framing(lo: [f32; 3], hi: [f32; 3], width: u32, height: u32) -> Camera {
+        let c = [0, 1, 2].map(|k| (f64::from(lo[k]) + f64::from(hi[k])) / 2.0);
+        let half = [0, 1, 2].map(|k| (f64::from(hi[k]) - f64::from(lo[k])) / 2.0);
+        let u = normalize([0.55, 0.45, 0.7]);
+        let up = [0.0, 1.0, 0.0];
+        let right = normalize(cross(neg(u), up));
+        let cam_up = cross(right, neg(u));
+        let aspect = f64::from(width.max(1)) / f64::from(height.max(1));
+        let tan_y = (DEFAULT_FOV_Y / 2.0).to_radians().tan();
+        let tan_x = tan_y * aspect;
+        let mut dist: f64 = 0.0;
+        for corner in 0..8 {
+            let q = [0, 1, 2].map(|k| {
+                if corner >> k & 1 == 1 {
+                    half[k]
+                } else {
+                    -half[k]
+                }
+            });
+            let along = dot(q, u);
+            dist = dist
+                .max(along + dot(q, right).abs() / tan_x)
+                .max(along + dot(q, cam_up).abs() / tan_y);
+        }
+        // A margin of a few pixels; a point-like scene still gets a distance.
+        let dist = if dist > 0.0 { dist * 1.05 } else { 1.0 };
+        Camera {
+            eye: [0, 1, 2].map(|k| c[k] + u[k] * dist),
+            look_at: c,
+            up,
+            fov_y: DEFAULT_FOV_Y,
+            width,
+            height,
+        }
+    }
+
+    pub fn frame(&self) -> Result<Frame, TraceError> {
+        let bad = |what: &str| Err(TraceError::Camera(what.to_string()));
+        if self.width == 0 || self.height == 0 {
+            return bad("the image needs a width and a height of at least 1");
+        }
+        if !(self.fov_y > 0.0 && self.fov_y < 180.0) {
+            return bad("the vertical field of view must lie strictly between 0 and 180 degrees");
+        }
+        let all = [self.eye, self.look_at, self.up];
+        if all.iter().flatten().any(|c| !c.is_finite()) {
+            return bad("eye, look-at and up must be finite");
+        }
+        let f = sub(self.look_at, self.eye);
+        if length(f) == 0.0 {
+            return bad("the eye and the look-at point are the same");
+        }
+        let forward = normalize(f);
+        let r = cross(forward, self.up);
+        if length(r) <= 1e-12 * length(self.up) || length(self.up) == 0.0 {
+            return bad("the up vector is zero or parallel to the view direction");
+        }
+        let right = normalize(r);
+        let up = cross(right, forward);
+        Ok(Frame {
+            eye: self.eye.map(|c| c as f32),
+            forward,
+            right,
+            up,
+            tan_half: (self.fov_y / 2.0).to_radians().tan(),
+            width: self.width,
+            height: self.height,
+        })
+    }
+}
+
+impl Frame {
+    /// The primary ray through the centre of pixel (x, y), with a unit direction.
+    pub fn ray(&self, x: u32, y: u32) -> Ray {
+        let w = f64::from(self.width);
+        let h = f64::from(self.height);
+        let sx = (2.0 * (f64::from(x) + 0.5) / w - 1.0) * self.tan_half * w / h;
+        let sy = (1.0 - 2.0 * (f64::from(y) + 0.5) / h) * self.tan_half;
+        let d =
+            normalize([0, 1, 2].map(|k| self.forward[k] + sx * self.right[k] + sy * self.up[k]));
+        Ray::new(self.eye, d.map(|c| c as f32))
+    }
+
+    /// World size of one pixel per unit of distance along the view axis.
+    pub fn pixel_angle(&self) -> f64 {
+        2.0 * self.tan_half / f64::from(self.height)
+    }
+
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn neg(a: [f64; 3]) -> [f64; 3] {
+    a.map(|c| -c)
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn length(a: [f64; 3]) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+fn normalize(a: [f64; 3]) -> [f64; 3] {
+    let l = length(a);
+    a.map(|c| c / l)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_centre_pixel_looks_forward_and_row_zero_is_the_top() {
+        let cam = Camera {
+            eye: [0.0, 0.0, 5.0],
+            look_at: [0.0; 3],
+            up: [0.0, 1.0, 0.0],
+            fov_y: 90.0,
+            width: 3,
+            height: 3,
+        };
+        let f = cam.frame().ok();
+        let centre = f.map(|f| f.ray(1, 1).dir);
+        assert_eq!(centre, Some([0.0, 0.0, -1.0]));
+        let top = f.map(|f| f.ray(1, 0).dir[1]);
+        assert!(top.is_some_and(|y| y > 0.0));
+        let left = f.map(|f| f.ray(0, 1).dir[0]);
+        assert!(left.is_some_and(|x| x < 0.0));
+    }
+
+    #[test]
+    fn bad_cameras_are_refused() {
+        let mut cam = Camera::framing([0.0; 3], [1.0; 3], 4, 4);
+        assert!(cam.frame().is_ok());
+        cam.up = cam.look_at.map(|_| 0.0);
+        assert!(cam.frame().is_err());
+        cam = Camera::framing([0.0; 3], [1.0; 3], 0, 4);
+        assert!(cam.frame().is_err());
+    }
+}

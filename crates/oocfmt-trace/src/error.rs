@@ -1,0 +1,30 @@
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum TraceError {
+    #[error(transparent)]
+    Format(#[from] oocfmt::Error),
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot encode the PNG: {source}")]
+    Png {
+        path: PathBuf,
+        source: png::EncodingError,
+    },
+    #[error("camera: {0}")]
+    Camera(String),
+    #[error("render options: {0}")]
+    Options(String),
+}
+
+impl TraceError {
+    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+        TraceError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+}

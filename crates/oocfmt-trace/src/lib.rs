@@ -1,0 +1,21 @@
+//! `oocfmt-trace`: the reference CPU ray tracer over `.oocf` containers, with level of detail
+//! after Áfra (2012). A [`Scene`] is an open container with its proxies resident; a
+//! [`cache::BlockCache`] hands decoded blocks to the traversal; [`render::render`] makes one
+//! frame.
+
+pub mod blocks;
+pub mod cache;
+pub mod camera;
+pub mod error;
+pub mod intersect;
+pub mod output;
+pub mod render;
+pub mod scene;
+pub mod shade;
+pub mod traverse;
+
+pub use cache::{BlockCache, BlockingCache, CacheStats};
+pub use camera::Camera;
+pub use error::TraceError;
+pub use render::{render, FrameStats, Image, RenderOptions};
+pub use scene::Scene;

@@ -1,0 +1,98 @@
+//! Headlight Lambert shading: the light sits at the eye, so a surface is as bright as it faces
+//! the viewer. Normals are turned towards the viewer (both sides of a triangle are lit).
+
+use oocfmt::metadata::Material;
+
+use crate::intersect::Ray;
+use crate::traverse::{Hit, Surface};
+
+/// The colour of surfaces without vertex colours or materials (linear RGB).
+pub const DEFAULT_ALBEDO: [f32; 3] = [0.78, 0.76, 0.72];
+const AMBIENT: f32 = 0.12;
+
+/// The linear RGB colour of a hit.
+pub fn shade(hit: &Hit, ray: &Ray, materials: &[Material]) -> [f32; 3] {
+    let (albedo, normal) = match &hit.surface {
+        Surface::Triangle {
+            data,
+            triangle,
+            bary,
+        } => {
+            let i = *triangle as usize;
+            let interp = |c: &[[f32; 3]; 3]| {
+                [0, 1, 2].map(|k| bary[0] * c[0][k] + bary[1] * c[1][k] + bary[2] * c[2][k])
+            };
+            let albedo = if let Some(c) = data.colours.as_ref().and_then(|c| c.get(i)) {
+                interp(c)
+            } else if let Some(m) = data
+                .materials
+                .as_ref()
+                .and_then(|m| m.get(i))
+                .and_then(|&m| materials.get(usize::from(m)))
+            {
+                m.diffuse
+            } else {
+                DEFAULT_ALBEDO
+            };
+            let geometric = data.positions.get(i).map(|p| {
+                let e1 = sub(p[1], p[0]);
+                let e2 = sub(p[2], p[0]);
+                cross(e1, e2)
+            });
+            let n = match data.normals.as_ref().and_then(|n| n.get(i)) {
+                Some(n) => interp(n),
+                None => geometric.unwrap_or([0.0, 0.0, 1.0]),
+            };
+            (albedo, n)
+        }
+        Surface::Voxel(s) | Surface::Proxy(s) => (s.colour(), s.normal()),
+    };
+    let len = dot(normal, normal).sqrt();
+    let cos = if len > 0.0 && len.is_finite() {
+        (dot(normal, ray.dir) / len).abs().min(1.0)
+    } else {
+        1.0
+    };
+    let light = AMBIENT + (1.0 - AMBIENT) * cos;
+    albedo.map(|c| c.clamp(0.0, 1.0) * light)
+}
+
+/// Linear to sRGB-encoded 8 bits.
+pub fn encode_srgb(c: f32) -> u8 {
+    let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_ends_and_middle() {
+        assert_eq!(encode_srgb(0.0), 0);
+        assert_eq!(encode_srgb(1.0), 255);
+        assert_eq!(encode_srgb(f32::NAN), 0);
+        assert_eq!(encode_srgb(0.18), 118);
+    }
+}

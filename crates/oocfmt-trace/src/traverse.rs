@@ -1,0 +1,409 @@
+//! Algorithm 1 of Áfra (2012): front-to-back traversal of the kd-tree through treelets and
+//! across blocks, remembering the last voxel met on the path.
+//!
+//! - At a LOD node whose enclosing-sphere radius r satisfies r ≤ t_entry · C the ray stops on
+//!   the node's voxel, at the entry distance of the node's cell, with the sample of the face it
+//!   entered through. C = poe · 2 tan(fov_y / 2) / image_height is the size of `poe` pixels per
+//!   unit of distance, so the test reads "the voxel's radius is at most `poe` pixels". `poe` 0
+//!   never stops (full detail).
+//! - A child block that is not available ends the ray on the subtree's proxy (skipping the
+//!   subtree where the proxy sees nothing from the ray's direction) or, without a proxy, on
+//!   the node's voxel; a missing triangle block ends it on the last voxel met.
+//! - Triangle hits are not clipped to their leaf's cell: every leaf is tested with the ray's
+//!   current nearest distance, and a stacked subtree is skipped only when it starts beyond that
+//!   nearest hit. Split decisions are widened by a small positional tolerance, so a hit that
+//!   rounding puts on the wrong side of a split plane is still found: at worst a few extra
+//!   leaves are visited. The same kernel tests the same triangles, so the nearest distance is
+//!   exactly the brute-force one.
+//! - A direction component of ±0 (or one whose reciprocal overflows) makes the ray parallel to
+//!   the split plane: it visits the side its origin lies on, both sides when the origin lies on
+//!   the plane. No 0 × inf product is formed.
+
+use rustc_hash::FxHashMap as HashMap;
+use std::sync::Arc;
+
+use oocfmt::records::{Sample, Voxel, MAX_TREE_DEPTH, PROXY_DIRECTIONS};
+
+use crate::blocks::{DNode, Lod, TreeletData, TriangleData, NONE};
+use crate::cache::BlockCache;
+use crate::intersect::{major_axis, ray_box, Ray};
+use crate::scene::Scene;
+
+/// What a ray ended on.
+#[derive(Clone, Debug)]
+pub enum Surface {
+    Triangle {
+        data: Arc<TriangleData>,
+        triangle: u32,
+        bary: [f32; 3],
+    },
+    Voxel(Sample),
+    Proxy(Sample),
+}
+
+#[derive(Clone, Debug)]
+pub struct Hit {
+    /// Distance along the ray's direction (the image's depth for a unit direction).
+    pub t: f32,
+    pub surface: Surface,
+}
+
+/// Blocks one group of rays (a tile) has looked up: the shared cache is asked once per block
+/// per tile rather than once per ray.
+#[derive(Default)]
+pub struct Memo {
+    treelets: HashMap<u32, Option<Arc<TreeletData>>>,
+    triangles: HashMap<u32, Option<Arc<TriangleData>>>,
+}
+
+impl Memo {
+    pub fn clear(&mut self) {
+        self.treelets.clear();
+        self.triangles.clear();
+    }
+
+    fn treelets(&mut self, cache: &dyn BlockCache, id: u32) -> Option<&Arc<TreeletData>> {
+        self.treelets
+            .entry(id)
+            .or_insert_with(|| cache.treelets(id))
+            .as_ref()
+    }
+
+    fn triangles(&mut self, cache: &dyn BlockCache, id: u32) -> Option<&Arc<TriangleData>> {
+        self.triangles
+            .entry(id)
+            .or_insert_with(|| cache.triangles(id))
+            .as_ref()
+    }
+}
+
+#[derive(Clone, Copy)]
+struct LastVoxel {
+    voxel: Voxel,
+    t: f32,
+    axis: u8,
+}
+
+/// A subtree waiting on the stack: its node, the ray's interval in its cell, the axis of the
+/// face the ray entered the cell through (3: none, the ray starts inside) and the last voxel
+/// above it.
+#[derive(Clone, Copy)]
+pub struct Entry {
+    block: u32,
+    node: u32,
+    t0: f32,
+    t1: f32,
+    axis: u8,
+    last: Option<LastVoxel>,
+}
+
+/// Reusable per-thread traversal state.
+pub struct Stack(Vec<Entry>);
+
+impl Default for Stack {
+    fn default() -> Self {
+        Stack(Vec::with_capacity(MAX_TREE_DEPTH as usize))
+    }
+}
+
+pub struct Tracer<'a> {
+    cache: &'a dyn BlockCache,
+    root: Option<(u32, u32)>,
+    lo: [f32; 3],
+    hi: [f32; 3],
+    proxies: &'a [oocfmt::records::ProxyRecord],
+    /// Positional tolerance of split decisions: some ulps of the scene's coordinates.
+    eps: f32,
+    /// The LOD constant C (see the module comment); 0 never stops at a voxel.
+    lod_c: f32,
+}
+
+/// One side of a split: left or right child, interval, entry axis.
+type Side = (bool, f32, f32, u8);
+
+impl<'a> Tracer<'a> {
+    /// `lod_c` = poe · (world size of a pixel per unit distance).
+    pub fn new(scene: &'a Scene, cache: &'a dyn BlockCache, lod_c: f32) -> Tracer<'a> {
+        let m = scene.metadata();
+        let (lo, hi) = (m.scene.bounds_min, m.scene.bounds_max);
+        let scale = lo.iter().chain(&hi).fold(0f32, |a, &c| a.max(c.abs()));
+        Tracer {
+            cache,
+            root: m.root.map(|r| (r.block, r.treelet)),
+            lo,
+            hi,
+            proxies: scene.proxies(),
+            eps: scale.max(f32::MIN_POSITIVE) * 4e-6,
+            lod_c: if lod_c.is_finite() && lod_c > 0.0 {
+                lod_c
+            } else {
+                0.0
+            },
+        }
+    }
+
+    /// Where the ray first meets the scene, or None.
+    pub fn trace(&self, ray: &Ray, memo: &mut Memo, stack: &mut Stack) -> Option<Hit> {
+        let stack = &mut stack.0;
+        stack.clear();
+        let eps = self
+            .eps
+            .max(ray.org.iter().fold(0f32, |a, &c| a.max(c.abs())) * 4e-6);
+        let (t0, t1, axis) = ray_box(ray, self.lo, self.hi, eps, 0.0, f32::INFINITY)?;
+        let (root_block, root_treelet) = self.root?;
+        let mut cur_id = root_block;
+        let mut cur = Arc::clone(memo.treelets(self.cache, root_block)?);
+        let root = *cur.roots.get(root_treelet as usize)?;
+        stack.push(Entry {
+            block: root_block,
+            node: root,
+            t0,
+            t1,
+            axis: axis.map_or(3, |a| a as u8),
+            last: None,
+        });
+        let mut best: Option<Hit> = None;
+        let mut best_t = f32::INFINITY;
+        while let Some(e) = stack.pop() {
+            if e.t0 > best_t + eps {
+                continue;
+            }
+            if e.block != cur_id {
+                let Some(d) = memo.treelets(self.cache, e.block) else {
+                    continue;
+                };
+                cur = Arc::clone(d);
+                cur_id = e.block;
+            }
+            let Entry {
+                mut node,
+                mut t0,
+                mut t1,
+                mut axis,
+                mut last,
+                ..
+            } = e;
+            while let Some(&n) = cur.nodes.get(node as usize) {
+                match n {
+                    DNode::Inner {
+                        axis: a,
+                        split,
+                        left,
+                        right,
+                    } => {
+                        let (near, far) = self.split(ray, a, split, t0, t1, axis, eps);
+                        let pick = |s: Option<Side>| {
+                            let (is_left, a0, a1, ax) = s?;
+                            let child = if is_left { left } else { right };
+                            (child != NONE).then_some((child, a0, a1, ax))
+                        };
+                        let (near, far) = match (pick(near), pick(far)) {
+                            (None, f) => (f, None),
+                            n => n,
+                        };
+                        let Some((c, a0, a1, ax)) = near else { break };
+                        if let Some((fc, f0, f1, fax)) = far {
+                            if stack.len() < stack.capacity() {
+                                stack.push(Entry {
+                                    block: cur_id,
+                                    node: fc,
+                                    t0: f0,
+                                    t1: f1,
+                                    axis: fax,
+                                    last,
+                                });
+                            }
+                        }
+                        (node, t0, t1, axis) = (c, a0, a1, ax);
+                    }
+                    DNode::Lod {
+                        axis: a,
+                        split,
+                        lod,
+                    } => {
+                        let Some(&Lod {
+                            radius,
+                            left,
+                            right,
+                            child_block,
+                            voxel,
+                            proxy,
+                        }) = cur.lods.get(lod as usize)
+                        else {
+                            break;
+                        };
+                        last = Some(LastVoxel { voxel, t: t0, axis });
+                        if self.lod_c > 0.0 && radius <= t0 * self.lod_c {
+                            offer(
+                                &mut best,
+                                &mut best_t,
+                                t0,
+                                Surface::Voxel(voxel_sample(&voxel, axis, ray)),
+                            );
+                            break;
+                        }
+                        let Some(child) = memo.treelets(self.cache, child_block) else {
+                            match proxy.and_then(|p| self.proxies.get(p as usize)) {
+                                Some(p) => {
+                                    let s = proxy_sample(&p.samples, ray);
+                                    if !s.is_empty() {
+                                        offer(&mut best, &mut best_t, t0, Surface::Proxy(s));
+                                    }
+                                }
+                                None => offer(
+                                    &mut best,
+                                    &mut best_t,
+                                    t0,
+                                    Surface::Voxel(voxel_sample(&voxel, axis, ray)),
+                                ),
+                            }
+                            break;
+                        };
+                        let child = Arc::clone(child);
+                        let (near, far) = self.split(ray, a, split, t0, t1, axis, eps);
+                        let pick = |s: Option<Side>| {
+                            let (is_left, a0, a1, ax) = s?;
+                            let t = if is_left { left } else { right };
+                            let root = *child.roots.get(t as usize)?;
+                            (t != NONE && root != NONE).then_some((root, a0, a1, ax))
+                        };
+                        let (near, far) = match (pick(near), pick(far)) {
+                            (None, f) => (f, None),
+                            n => n,
+                        };
+                        let Some((c, a0, a1, ax)) = near else { break };
+                        if let Some((fc, f0, f1, fax)) = far {
+                            if stack.len() < stack.capacity() {
+                                stack.push(Entry {
+                                    block: child_block,
+                                    node: fc,
+                                    t0: f0,
+                                    t1: f1,
+                                    axis: fax,
+                                    last,
+                                });
+                            }
+                        }
+                        cur = child;
+                        cur_id = child_block;
+                        (node, t0, t1, axis) = (c, a0, a1, ax);
+                    }
+                    DNode::Leaf {
+                        first,
+                        count,
+                        block,
+                    } => {
+                        match memo.triangles(self.cache, block) {
+                            Some(td) => {
+                                let first = usize::from(first);
+                                let list = td.list.get(first..first + usize::from(count));
+                                for &ti in list.unwrap_or(&[]) {
+                                    let Some([a, b, c]) = td.positions.get(usize::from(ti)) else {
+                                        continue;
+                                    };
+                                    if let Some(h) = ray.triangle(a, b, c) {
+                                        if h.t < best_t {
+                                            best_t = h.t;
+                                            best = Some(Hit {
+                                                t: h.t,
+                                                surface: Surface::Triangle {
+                                                    data: Arc::clone(td),
+                                                    triangle: u32::from(ti),
+                                                    bary: h.bary,
+                                                },
+                                            });
+                                        }
+                                    }
+                                }
+                            }
+                            None => {
+                                if let Some(lv) = last {
+                                    let s = voxel_sample(&lv.voxel, lv.axis, ray);
+                                    offer(&mut best, &mut best_t, lv.t, Surface::Voxel(s));
+                                }
+                            }
+                        }
+                        break;
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    /// The children a ray in [t0, t1] visits at a split plane, nearest first, with their
+    /// intervals and entry axes. `entry` is the axis the ray entered the parent through.
+    #[allow(clippy::too_many_arguments)]
+    fn split(
+        &self,
+        ray: &Ray,
+        axis: u8,
+        split: f32,
+        t0: f32,
+        t1: f32,
+        entry: u8,
+        eps: f32,
+    ) -> (Option<Side>, Option<Side>) {
+        let k = usize::from(axis.min(2));
+        let (o, d, inv) = (ray.org[k], ray.dir[k], ray.inv[k]);
+        if d == 0.0 || !inv.is_finite() {
+            return if o < split - eps {
+                (Some((true, t0, t1, entry)), None)
+            } else if o > split + eps {
+                (Some((false, t0, t1, entry)), None)
+            } else {
+                (Some((true, t0, t1, entry)), Some((false, t0, t1, entry)))
+            };
+        }
+        // The side the ray is on before it crosses the plane depends on the direction's
+        // sign only: the crossing distance may be negative (the plane is behind) without
+        // changing which side comes first.
+        let left_before = d > 0.0;
+        let ts = (split - o) * inv;
+        let tol = eps * inv.abs();
+        let mid = ts.max(t0).min(t1);
+        let before = (ts + tol >= t0).then_some((left_before, t0, mid, entry));
+        let after_axis = if ts >= t0 { axis } else { entry };
+        let after = (ts - tol <= t1).then_some((!left_before, mid, t1, after_axis));
+        match before {
+            Some(b) => (Some(b), after),
+            None => (after, None),
+        }
+    }
+}
+
+fn offer(best: &mut Option<Hit>, best_t: &mut f32, t: f32, surface: Surface) {
+    if t < *best_t {
+        *best_t = t;
+        *best = Some(Hit { t, surface });
+    }
+}
+
+/// The sample of the face a ray entered the voxel's cell through (−x, +x, −y, +y, −z, +z).
+fn voxel_sample(v: &Voxel, axis: u8, ray: &Ray) -> Sample {
+    match v {
+        Voxel::Single(s) => *s,
+        Voxel::Six(s) => {
+            let a = if axis < 3 {
+                usize::from(axis)
+            } else {
+                major_axis(ray.dir)
+            };
+            let face = 2 * a + usize::from(ray.dir[a] < 0.0);
+            s.get(face).copied().unwrap_or(s[0])
+        }
+    }
+}
+
+/// The proxy sample whose direction is nearest the ray's.
+fn proxy_sample(samples: &[Sample; 18], ray: &Ray) -> Sample {
+    let mut best = (f32::NEG_INFINITY, samples[0]);
+    for (d, s) in PROXY_DIRECTIONS.iter().zip(samples) {
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let dot = (d[0] * ray.dir[0] + d[1] * ray.dir[1] + d[2] * ray.dir[2]) / len;
+        if dot > best.0 {
+            best = (dot, *s);
+        }
+    }
+    best.1
+}

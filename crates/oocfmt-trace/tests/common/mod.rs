@@ -1,0 +1,70 @@
+//! Scenes for the tracer's tests: generated, converted into a temporary folder.
+#![allow(clippy::unwrap_used, clippy::expect_used, dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use oocfmt::BlockKind;
+use oocfmt_build::convert::{convert, ConvertOptions};
+use oocfmt_build::gen::cad::{self, CadOptions};
+use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
+use oocfmt_build::progress::NoProgress;
+use oocfmt_trace::intersect::Ray;
+use oocfmt_trace::Scene;
+use rayon::prelude::*;
+
+pub fn convert_obj(obj: &Path, out: &Path) {
+    let opts = ConvertOptions {
+        mem_limit: 1 << 30,
+        ..ConvertOptions::default()
+    };
+    convert(&[obj.to_path_buf()], out, &opts, &mut NoProgress).unwrap();
+}
+
+pub fn mandelbulb(dir: &Path, triangles: u64) -> PathBuf {
+    let obj = dir.join("mb.obj");
+    let opts = MandelbulbOptions {
+        triangles,
+        ..MandelbulbOptions::default()
+    };
+    mandelbulb::write_obj(&obj, &opts, &mut |_, _| {}).unwrap();
+    let out = dir.join("mb.oocf");
+    convert_obj(&obj, &out);
+    out
+}
+
+pub fn cad_scene(dir: &Path, triangles: u64) -> PathBuf {
+    let obj = dir.join("cad.obj");
+    let opts = CadOptions {
+        triangles,
+        seed: 7,
+        normals: true,
+    };
+    cad::write_obj(&obj, &opts, &mut |_, _| {}).unwrap();
+    let out = dir.join("cad.oocf");
+    convert_obj(&obj, &out);
+    out
+}
+
+/// Every triangle record of the file, copies included.
+pub fn all_triangles(scene: &Scene) -> Vec<[[f32; 3]; 3]> {
+    let mut v = Vec::new();
+    for (id, e) in (0u32..).zip(scene.reader().entries()) {
+        if e.kind == BlockKind::Triangle {
+            v.extend(scene.load_triangles(id).unwrap().positions);
+        }
+    }
+    v
+}
+
+/// The nearest hit of each ray over every triangle, with the tracer's kernel.
+pub fn brute_force(rays: &[Ray], triangles: &Arc<Vec<[[f32; 3]; 3]>>) -> Vec<f32> {
+    rays.par_iter()
+        .map(|r| {
+            triangles
+                .iter()
+                .filter_map(|[a, b, c]| r.triangle(a, b, c))
+                .fold(f32::INFINITY, |m, h| m.min(h.t))
+        })
+        .collect()
+}

@@ -1,0 +1,94 @@
+//! End-to-end tests of `oocfmt render`: generate, convert and render a scene; the PNG decodes
+//! at the asked size, the depth PFM and the stats JSON are written, bad usage exits 2.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::Path;
+use std::process::Output;
+
+mod common;
+
+use common::*;
+
+fn ok_(o: &Output) {
+    ok(o, "oocfmt");
+}
+
+fn converted_mandelbulb(dir: &Path) {
+    gen(dir, "mandelbulb", "3000", "mb.obj");
+    run_ok(&["convert", "mb.obj", "-o", "mb.oocf", "--quiet"], dir);
+}
+
+#[test]
+fn render_writes_a_png_a_depth_pfm_and_stats() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    converted_mandelbulb(d);
+    let o = oocfmt(
+        &[
+            "render",
+            "mb.oocf",
+            "-o",
+            "mb.png",
+            "--size",
+            "64x48",
+            "--poe",
+            "0",
+            "--depth-out",
+            "mb.pfm",
+            "--stats-json",
+            "stats.json",
+        ],
+        d,
+    );
+    ok_(&o);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("mb.png"));
+
+    let decoder = png::Decoder::new(std::fs::File::open(d.join("mb.png")).unwrap());
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!((info.width, info.height), (64, 48));
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    // The default camera frames the model: the middle of the picture is not background.
+    let mid = 3 * (24 * 64 + 32);
+    let corner = &buf[0..3];
+    assert_ne!(&buf[mid..mid + 3], corner);
+
+    let pfm = std::fs::read(d.join("mb.pfm")).unwrap();
+    let head = b"Pf\n64 48\n-1.0\n";
+    assert_eq!(&pfm[..head.len()], head);
+    assert_eq!(pfm.len(), head.len() + 4 * 64 * 48);
+    let depths: Vec<f32> = pfm[head.len()..]
+        .chunks(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    assert!(depths.iter().any(|d| d.is_infinite()));
+    assert!(depths.iter().any(|d| d.is_finite() && *d > 0.0));
+
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("stats.json")).unwrap()).unwrap();
+    let p = &stats["primary"];
+    let total: u64 = ["triangle", "voxel", "proxy", "miss"]
+        .iter()
+        .map(|k| p[k].as_u64().unwrap())
+        .sum();
+    assert_eq!(total, 64 * 48);
+    assert_eq!(p["voxel"].as_u64(), Some(0));
+    assert!(stats["cache"]["blocks_loaded"].as_u64().unwrap() > 0);
+}
+
+#[test]
+fn render_usage_errors_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for args in [
+        &["render", "missing.oocf", "-o", "x.png"][..],
+        &["render", "m.oocf", "-o", "x.png", "--size", "0x10"][..],
+        &["render", "m.oocf", "-o", "x.png", "--cache", "async"][..],
+        &["render", "m.oocf", "-o", "x.png", "--eye", "1,2"][..],
+    ] {
+        let o = oocfmt(args, d);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+    }
+    assert!(!d.join("x.png").exists());
+}
