@@ -178,22 +178,35 @@ fn inspect_block_decodes_every_block_of_every_vector() {
 }
 
 #[test]
-fn the_demo_builds_inspects_and_verifies() {
+fn the_demo_generates_converts_verifies_and_renders() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-    let o = oocfmt(
-        &["demo", "--triangles", "20000", "--out", "demo-out"],
+    let o = run_ok(
+        &[
+            "demo",
+            "--triangles",
+            "20000",
+            "--width",
+            "64",
+            "--out",
+            "demo-out",
+        ],
         tmp.path(),
     );
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}{}",
-        stdout(&o),
-        String::from_utf8_lossy(&o.stderr)
-    );
     let out = stdout(&o);
-    assert!(out.contains("valid"), "{out}");
-    assert!(tmp.path().join("demo-out/demo.oocf").is_file());
+    assert!(out.contains("valid (0 errors"), "{out}");
+    assert!(out.contains("PSNR"), "{out}");
+    let dir = tmp.path().join("demo-out");
+    for f in [
+        "mandelbulb.obj",
+        "mandelbulb.oocf",
+        "mandelbulb-poe0.png",
+        "mandelbulb-poe2.png",
+    ] {
+        assert!(dir.join(f).is_file(), "{f} missing: {out}");
+    }
+    // A LOD of zero pixels would be the full-detail image again: refused.
+    let bad = oocfmt(&["demo", "--poe", "0", "--out", "x"], tmp.path());
+    assert_eq!(bad.status.code(), Some(2));
 }
 
 /// A small OBJ scene: a floor quad and a concave L-shaped panel with a material library,

@@ -1,16 +1,23 @@
-//! `oocfmt demo`: the README's first command. Generates the built-in scene, builds a container
-//! from it, then inspects and deep-verifies the result, printing where it is and what it cost.
+//! `oocfmt demo`: the README's first command, the whole pipeline on a built-in scene: generate a
+//! Mandelbulb, convert it, inspect and deep-verify the container, and render it at full detail
+//! and at a level of detail, printing where everything is, what it cost and what the LOD
+//! image's error is.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 use oocfmt::verify::{verify, Depth, VerifyOptions};
 use oocfmt::{Codec, FileSource, ReadOptions, Reader, WriteOptions};
-use oocfmt_build::gen::demo::demo_scene;
-use oocfmt_build::kdtree::{self, KdBuildOptions};
-use oocfmt_build::layout::{write_container, LayoutOptions};
+use oocfmt_build::convert::{convert, ConvertOptions};
+use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
+use oocfmt_build::kdtree::KdBuildOptions;
+use oocfmt_build::layout::LayoutOptions;
+use oocfmt_trace::output::write_png;
+use oocfmt_trace::{render, BlockingCache, Camera, FrameStats, Image, RenderOptions, Scene};
 
 use crate::error::{CliError, CliResult};
+use crate::render::cli_error;
 use crate::{inspect, progress};
 
 #[derive(clap::Args)]
@@ -18,8 +25,8 @@ pub struct Args {
     /// Folder for the output (created if missing)
     #[arg(long, default_value = "oocfmt-demo")]
     pub out: PathBuf,
-    /// Approximate triangle count of the generated scene
-    #[arg(long, default_value_t = 200_000, value_parser = clap::value_parser!(u64).range(16..=20_000_000))]
+    /// Approximate triangle count of the generated Mandelbulb
+    #[arg(long, default_value_t = 1_000_000, value_parser = clap::value_parser!(u64).range(1000..=100_000_000))]
     pub triangles: u64,
     /// Block codec: none, lz4, zstd or zstd:LEVEL
     #[arg(long, default_value = "lz4", value_parser = parse_codec)]
@@ -30,6 +37,12 @@ pub struct Args {
     /// Most triangles per kd-tree leaf (1..=4095)
     #[arg(long, default_value_t = 8)]
     pub max_leaf: u32,
+    /// Image width in pixels (the height is three quarters of it)
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(16..=8192))]
+    pub width: u32,
+    /// The pixels of error of the level-of-detail image, compared with full detail
+    #[arg(long, default_value_t = 2.0)]
+    pub poe: f32,
 }
 
 pub fn parse_codec(s: &str) -> Result<Codec, String> {
@@ -37,6 +50,12 @@ pub fn parse_codec(s: &str) -> Result<Codec, String> {
 }
 
 pub fn run(a: &Args) -> CliResult {
+    if !(a.poe.is_finite() && a.poe > 0.0) {
+        return Err(CliError::Usage(format!(
+            "--poe {}: expected a finite number above 0",
+            a.poe
+        )));
+    }
     let write = WriteOptions {
         codec: a.codec,
         ..WriteOptions::default()
@@ -46,55 +65,55 @@ pub fn run(a: &Args) -> CliResult {
         path: a.out.display().to_string(),
         source: e,
     })?;
-    let path = a.out.join("demo.oocf");
+    let obj = a.out.join("mandelbulb.obj");
+    let path = a.out.join("mandelbulb.oocf");
 
-    let spin = progress::spinner("generating the demo scene");
+    let bar = progress::count("generating a Mandelbulb", false);
     let t = Instant::now();
-    let mesh = demo_scene(a.triangles as usize);
-    spin.finish_and_clear();
-    println!(
-        "scene      {} triangles, {} vertices in {:.2} s",
-        mesh.triangles.len(),
-        mesh.positions.len(),
-        t.elapsed().as_secs_f64()
-    );
-
-    let spin = progress::spinner("building the kd-tree");
-    let t = Instant::now();
-    let tree = kdtree::build(
-        &mesh,
-        &KdBuildOptions {
-            max_leaf_triangles: a.max_leaf,
-            ..KdBuildOptions::default()
+    let gen = mandelbulb::write_obj(
+        &obj,
+        &MandelbulbOptions {
+            triangles: a.triangles,
+            ..MandelbulbOptions::default()
+        },
+        &mut |done, total| {
+            bar.set_length(total);
+            bar.set_position(done)
         },
     )
     .map_err(|e| CliError::Build(e.to_string()))?;
-    spin.finish_and_clear();
+    bar.finish_and_clear();
     println!(
-        "kd-tree    {} nodes, depth {} in {:.2} s",
-        tree.nodes().len(),
-        tree.depth(),
+        "generated  {} ({} triangles, {:.1} MB) in {:.2} s",
+        obj.display(),
+        gen.triangles,
+        gen.bytes as f64 / 1e6,
         t.elapsed().as_secs_f64()
     );
 
-    let spin = progress::spinner("laying out and writing the container");
-    let t = Instant::now();
-    let opts = LayoutOptions {
-        write,
-        sources: vec!["built-in demo scene".to_string()],
-        ..LayoutOptions::default()
+    let opts = ConvertOptions {
+        layout: LayoutOptions {
+            write,
+            ..LayoutOptions::default()
+        },
+        kd: KdBuildOptions {
+            max_leaf_triangles: a.max_leaf,
+            ..KdBuildOptions::default()
+        },
+        ..ConvertOptions::default()
     };
-    let (written, _) =
-        write_container(&path, &mesh, &tree, &opts).map_err(|e| CliError::Build(e.to_string()))?;
-    spin.finish_and_clear();
-    let secs = t.elapsed().as_secs_f64();
+    let mut phases = progress::Phases::new(false);
+    let report = convert(std::slice::from_ref(&obj), &path, &opts, &mut phases)
+        .map_err(|e| CliError::Build(e.to_string()))?;
     println!(
-        "written    {} ({} bytes, {} blocks) in {secs:.2} s: {:.0} triangles/s",
+        "converted  {} ({} bytes) in {:.2} s: {:.0} triangles/s, peak memory {:.0} MiB",
         path.display(),
-        written.file_length,
-        written.block_count,
-        mesh.triangles.len() as f64 / secs.max(1e-9)
+        report.file_bytes,
+        report.seconds,
+        report.triangles_per_second,
+        report.peak_memory_bytes.unwrap_or(0) as f64 / 1048576.0
     );
+    let file_length = report.file_bytes;
 
     let reader = Reader::open(&path, ReadOptions::default())?;
     println!();
@@ -105,7 +124,7 @@ pub fn run(a: &Args) -> CliResult {
         path: path.display().to_string(),
         source: e,
     })?;
-    let bar = progress::bytes(written.file_length, "verify --deep", false);
+    let bar = progress::bytes(file_length, "verify --deep", false);
     let t = Instant::now();
     let opts = VerifyOptions {
         depth: Depth::Deep,
@@ -124,11 +143,111 @@ pub fn run(a: &Args) -> CliResult {
         if report.valid { "valid" } else { "INVALID" },
         report.errors,
         report.warnings,
-        written.file_length as f64 / secs.max(1e-9) / 1e6
+        file_length as f64 / secs.max(1e-9) / 1e6
     );
+    if !report.valid {
+        return Ok(1);
+    }
+    println!();
+    render_both(&path, &a.out, a.width, a.poe)?;
     println!(
-        "\nnext: oocfmt inspect {0} --block 0; oocfmt verify --deep {0}",
+        "\nnext: oocfmt render {0} -o view.png --poe 1 --eye X,Y,Z; oocfmt inspect {0}",
         path.display()
     );
-    Ok(if report.valid { 0 } else { 1 })
+    Ok(0)
+}
+
+/// Renders the default view at full detail and at `poe`, writes both PNGs, and prints the
+/// figures of each and the error of the second against the first.
+fn render_both(model: &Path, out: &Path, width: u32, poe: f32) -> Result<(), CliError> {
+    let scene = Arc::new(Scene::open(model).map_err(cli_error)?);
+    let m = scene.metadata();
+    let camera = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, width, width * 3 / 4);
+    let mut images = Vec::new();
+    for p in [0.0, poe] {
+        // A fresh cache per image, so each working set is its own.
+        let cache = BlockingCache::new(Arc::clone(&scene), usize::MAX);
+        let opts = RenderOptions {
+            poe: p,
+            ..RenderOptions::default()
+        };
+        // The first frame loads what the view needs; the second is timed warm.
+        render(&scene, &cache, &camera, &opts).map_err(cli_error)?;
+        let (image, stats) = render(&scene, &cache, &camera, &opts).map_err(cli_error)?;
+        let png = out.join(format!("mandelbulb-poe{p}.png"));
+        write_png(&png, image.width, image.height, &image.rgb).map_err(cli_error)?;
+        print_frame(&png, &stats);
+        images.push(image);
+    }
+    if let [reference, coarse] = &images[..] {
+        let e = image_error(reference, coarse);
+        println!(
+            "error      --poe {poe} against --poe 0: RMSE {:.2} of 255, PSNR {:.1} dB, {:.2} % of pixels within 8 levels per channel, {:.3} % of hits and misses differ",
+            e.rmse,
+            e.psnr,
+            100.0 * e.within,
+            100.0 * e.coverage_differs
+        );
+    }
+    Ok(())
+}
+
+fn print_frame(png: &Path, s: &FrameStats) {
+    let p = &s.primary;
+    println!(
+        "rendered   {} (--poe {}): {:.1} ms warm, {:.2} Mrays/s; rays end on {} triangles, {} voxels, {} proxies, {} misses; working set {:.1} MiB in {} blocks",
+        png.display(),
+        s.poe,
+        s.ms,
+        s.rays_per_second / 1e6,
+        p.triangle,
+        p.voxel,
+        p.proxy,
+        p.miss,
+        s.cache.bytes_resident as f64 / 1048576.0,
+        s.cache.blocks_loaded
+    );
+}
+
+struct ImageError {
+    rmse: f64,
+    psnr: f64,
+    /// Share of pixels whose channels all differ by at most 8 of 255.
+    within: f64,
+    /// Share of pixels that hit in one image and miss in the other.
+    coverage_differs: f64,
+}
+
+fn image_error(a: &Image, b: &Image) -> ImageError {
+    let pixels = a.rgb.len() / 3;
+    let (mut sq, mut within) = (0.0f64, 0usize);
+    for (pa, pb) in a.rgb.chunks_exact(3).zip(b.rgb.chunks_exact(3)) {
+        let mut worst = 0;
+        for (x, y) in pa.iter().zip(pb) {
+            let d = i32::from(*x) - i32::from(*y);
+            sq += f64::from(d * d);
+            worst = worst.max(d.abs());
+        }
+        if worst <= 8 {
+            within += 1;
+        }
+    }
+    let coverage = a
+        .depth
+        .iter()
+        .zip(&b.depth)
+        .filter(|(x, y)| x.is_finite() != y.is_finite())
+        .count();
+    let n = pixels.max(1) as f64;
+    let rmse = (sq / (3.0 * n)).sqrt();
+    ImageError {
+        rmse,
+        psnr: if rmse > 0.0 {
+            20.0 * (255.0 / rmse).log10()
+        } else {
+            f64::INFINITY
+        },
+        within: within as f64 / n,
+        coverage_differs: coverage as f64 / n,
+    }
 }

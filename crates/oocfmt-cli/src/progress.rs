@@ -18,14 +18,6 @@ pub fn bytes(total: u64, label: &str, quiet: bool) -> ProgressBar {
     bar
 }
 
-/// A spinner for a phase of unknown length; hidden when stderr is not a terminal.
-pub fn spinner(label: &str) -> ProgressBar {
-    let bar = ProgressBar::new_spinner();
-    bar.set_message(label.to_string());
-    bar.enable_steady_tick(std::time::Duration::from_millis(120));
-    bar
-}
-
 /// The library's phase progress, drawn as one bar (or spinner) per phase on stderr.
 pub struct Phases {
     bar: Option<ProgressBar>,

@@ -82,7 +82,7 @@ fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
     }
 }
 
-fn cli_error(e: TraceError) -> CliError {
+pub(crate) fn cli_error(e: TraceError) -> CliError {
     match e {
         TraceError::Format(e) => CliError::Format(e),
         TraceError::Io { path, source } => CliError::Io {
