@@ -121,7 +121,15 @@ impl Prepared {
 /// The nearest hit with `t` in `t0 ..= t1` (widened by `eps`) among `triangles`, testing each.
 pub fn first_hit_of(triangles: &[Prepared], ray: &Ray, t0: f64, t1: f64, eps: f64) -> Option<Hit> {
     let mut best: Option<Hit> = None;
+    let flat = ray.dir.map(|d| d == 0.0);
     for p in triangles {
+        // Face rays run parallel to two axes: their boxes' sides there settle most misses.
+        if (flat[0] && (ray.origin[0] < p.lo[0] || ray.origin[0] > p.hi[0]))
+            || (flat[1] && (ray.origin[1] < p.lo[1] || ray.origin[1] > p.hi[1]))
+            || (flat[2] && (ray.origin[2] < p.lo[2] || ray.origin[2] > p.hi[2]))
+        {
+            continue;
+        }
         let limit = best.map_or(t1, |b| b.t) + eps;
         if !p.box_reachable(ray, t0 - eps, limit) {
             continue;
