@@ -168,6 +168,30 @@ pub fn clip_to_box(ray: &Ray, cell: &Bounds) -> Option<(f64, f64)> {
     (t0 <= t1).then_some((t0, t1))
 }
 
+/// Per axis, the span a triangle's box must overlap for the ray to possibly hit it: around
+/// the origin on axes the ray runs parallel to (face rays have two), everything elsewhere. It
+/// is widened far beyond rounding in the ray test (by `eps` and a relative margin, then
+/// outwards to f32), so checking it never loses a hit; it spares most misses the full test.
+fn flat_reach(ray: &Ray, eps: f64) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::NEG_INFINITY; 3];
+    let mut hi = [f32::INFINITY; 3];
+    for a in 0..3 {
+        if ray.dir[a] == 0.0 {
+            let o = ray.origin[a];
+            let pad = eps.abs() + 1e-7 * o.abs() + 1e-30;
+            let (l, h) = ((o - pad) as f32, (o + pad) as f32);
+            // Rounding to f32 may move each bound inwards by half a unit; step it outwards.
+            lo[a] = l - l.abs() * 1e-6 - f32::MIN_POSITIVE;
+            hi[a] = h + h.abs() * 1e-6 + f32::MIN_POSITIVE;
+            if !(lo[a] <= hi[a]) {
+                // NaN or overflow: keep everything.
+                (lo[a], hi[a]) = (f32::NEG_INFINITY, f32::INFINITY);
+            }
+        }
+    }
+    (lo, hi)
+}
+
 /// The corners of every mesh triangle side by side, indexed by triangle: one memory access per
 /// triangle test instead of an index lookup and three scattered positions.
 pub fn triangle_corners(mesh: &Mesh) -> Vec<[[f32; 3]; 3]> {
@@ -230,6 +254,7 @@ impl<'a> Tracer<'a> {
         eps: f64,
     ) -> Option<Hit> {
         let mut best: Option<Hit> = None;
+        let (reach_lo, reach_hi) = flat_reach(ray, eps);
         self.stack.clear();
         self.stack.push((root, t0, t1));
         while let Some((mut id, tmin, mut tmax)) = self.stack.pop() {
@@ -280,6 +305,12 @@ impl<'a> Tracer<'a> {
                             let Some(c) = self.corners(t) else {
                                 continue;
                             };
+                            if !(0..3).all(|a| {
+                                c[0][a].max(c[1][a]).max(c[2][a]) >= reach_lo[a]
+                                    && c[0][a].min(c[1][a]).min(c[2][a]) <= reach_hi[a]
+                            }) {
+                                continue;
+                            }
                             let p = c.map(|p| p.map(f64::from));
                             let Some((th, u, v)) =
                                 moller_trumbore(ray, p[0], sub(p[1], p[0]), sub(p[2], p[0]))
