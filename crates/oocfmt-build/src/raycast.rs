@@ -183,7 +183,7 @@ fn flat_reach(ray: &Ray, eps: f64) -> ([f32; 3], [f32; 3]) {
             // Rounding to f32 may move each bound inwards by half a unit; step it outwards.
             lo[a] = l - l.abs() * 1e-6 - f32::MIN_POSITIVE;
             hi[a] = h + h.abs() * 1e-6 + f32::MIN_POSITIVE;
-            if !(lo[a] <= hi[a]) {
+            if lo[a].is_nan() || hi[a].is_nan() || lo[a] > hi[a] {
                 // NaN or overflow: keep everything.
                 (lo[a], hi[a]) = (f32::NEG_INFINITY, f32::INFINITY);
             }
