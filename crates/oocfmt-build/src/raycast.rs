@@ -40,7 +40,29 @@ pub struct Hit {
 /// Möller–Trumbore in f64: `(t, u, v)` where the ray's line meets the triangle, edges
 /// included, or `None` when it misses or runs parallel to its plane. `t` may be negative.
 pub fn intersect_triangle(ray: &Ray, p: [[f64; 3]; 3]) -> Option<(f64, f64, f64)> {
-    Prepared::new(0, p).intersect(ray)
+    moller_trumbore(ray, p[0], sub(p[1], p[0]), sub(p[2], p[0]))
+}
+
+/// The test of [`intersect_triangle`] on a triangle given by a corner and the edges from it.
+#[inline(always)]
+fn moller_trumbore(ray: &Ray, v0: [f64; 3], e1: [f64; 3], e2: [f64; 3]) -> Option<(f64, f64, f64)> {
+    let pv = cross(ray.dir, e2);
+    let det = dot(e1, pv);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let tv = sub(ray.origin, v0);
+    let u = dot(tv, pv) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let qv = cross(tv, e1);
+    let v = dot(ray.dir, qv) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    Some((dot(e2, qv) * inv, u, v))
 }
 
 /// A triangle with its edges and box precomputed, for testing many rays against few
@@ -92,30 +114,22 @@ impl Prepared {
 
     /// See [`intersect_triangle`].
     pub fn intersect(&self, ray: &Ray) -> Option<(f64, f64, f64)> {
-        let pv = cross(ray.dir, self.e2);
-        let det = dot(self.e1, pv);
-        if det == 0.0 || !det.is_finite() {
-            return None;
-        }
-        let inv = 1.0 / det;
-        let tv = sub(ray.origin, self.v0);
-        let u = dot(tv, pv) * inv;
-        if !(0.0..=1.0).contains(&u) {
-            return None;
-        }
-        let qv = cross(tv, self.e1);
-        let v = dot(ray.dir, qv) * inv;
-        if v < 0.0 || u + v > 1.0 {
-            return None;
-        }
-        Some((dot(self.e2, qv) * inv, u, v))
+        moller_trumbore(ray, self.v0, self.e1, self.e2)
     }
 }
 
 /// The nearest hit with `t` in `t0 ..= t1` (widened by `eps`) among `triangles`, testing each.
 pub fn first_hit_of(triangles: &[Prepared], ray: &Ray, t0: f64, t1: f64, eps: f64) -> Option<Hit> {
     let mut best: Option<Hit> = None;
+    let flat = ray.dir.map(|d| d == 0.0);
     for p in triangles {
+        // Face rays run parallel to two axes: their boxes' sides there settle most misses.
+        if (flat[0] && (ray.origin[0] < p.lo[0] || ray.origin[0] > p.hi[0]))
+            || (flat[1] && (ray.origin[1] < p.lo[1] || ray.origin[1] > p.hi[1]))
+            || (flat[2] && (ray.origin[2] < p.lo[2] || ray.origin[2] > p.hi[2]))
+        {
+            continue;
+        }
         let limit = best.map_or(t1, |b| b.t) + eps;
         if !p.box_reachable(ray, t0 - eps, limit) {
             continue;
@@ -154,10 +168,46 @@ pub fn clip_to_box(ray: &Ray, cell: &Bounds) -> Option<(f64, f64)> {
     (t0 <= t1).then_some((t0, t1))
 }
 
+/// Per axis, the span a triangle's box must overlap for the ray to possibly hit it: around
+/// the origin on axes the ray runs parallel to (face rays have two), everything elsewhere. It
+/// is widened far beyond rounding in the ray test (by `eps` and a relative margin, then
+/// outwards to f32), so checking it never loses a hit; it spares most misses the full test.
+fn flat_reach(ray: &Ray, eps: f64) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::NEG_INFINITY; 3];
+    let mut hi = [f32::INFINITY; 3];
+    for a in 0..3 {
+        if ray.dir[a] == 0.0 {
+            let o = ray.origin[a];
+            let pad = eps.abs() + 1e-7 * o.abs() + 1e-30;
+            let (l, h) = ((o - pad) as f32, (o + pad) as f32);
+            // Rounding to f32 may move each bound inwards by half a unit; step it outwards.
+            lo[a] = l - l.abs() * 1e-6 - f32::MIN_POSITIVE;
+            hi[a] = h + h.abs() * 1e-6 + f32::MIN_POSITIVE;
+            if lo[a].is_nan() || hi[a].is_nan() || lo[a] > hi[a] {
+                // NaN or overflow: keep everything.
+                (lo[a], hi[a]) = (f32::NEG_INFINITY, f32::INFINITY);
+            }
+        }
+    }
+    (lo, hi)
+}
+
+/// The corners of every mesh triangle side by side, indexed by triangle: one memory access per
+/// triangle test instead of an index lookup and three scattered positions.
+pub fn triangle_corners(mesh: &Mesh) -> Vec<[[f32; 3]; 3]> {
+    use rayon::prelude::*;
+    (0..mesh.triangles.len())
+        .into_par_iter()
+        .map(|t| mesh.corners(t).unwrap_or([[f32::NAN; 3]; 3]))
+        .collect()
+}
+
 /// Traces rays through subtrees of one tree; keeps its traversal stack between rays.
 pub struct Tracer<'a> {
     mesh: &'a Mesh,
     tree: &'a KdTree,
+    /// [`triangle_corners`] of the mesh, when the caller made them.
+    corners: Option<&'a [[[f32; 3]; 3]]>,
     stack: Vec<(NodeId, f64, f64)>,
 }
 
@@ -166,7 +216,29 @@ impl<'a> Tracer<'a> {
         Tracer {
             mesh,
             tree,
+            corners: None,
             stack: Vec::with_capacity(64),
+        }
+    }
+
+    /// A tracer reading triangles from `corners`, which must be [`triangle_corners`] of `mesh`
+    /// (shared between tracers): the same hits as [`Tracer::new`], found faster.
+    pub fn with_corners(
+        mesh: &'a Mesh,
+        tree: &'a KdTree,
+        corners: &'a [[[f32; 3]; 3]],
+    ) -> Tracer<'a> {
+        Tracer {
+            corners: Some(corners),
+            ..Tracer::new(mesh, tree)
+        }
+    }
+
+    #[inline]
+    fn corners(&self, t: u32) -> Option<[[f32; 3]; 3]> {
+        match self.corners {
+            Some(cs) => cs.get(t as usize).copied(),
+            None => self.mesh.corners(t as usize),
         }
     }
 
@@ -182,6 +254,7 @@ impl<'a> Tracer<'a> {
         eps: f64,
     ) -> Option<Hit> {
         let mut best: Option<Hit> = None;
+        let (reach_lo, reach_hi) = flat_reach(ray, eps);
         self.stack.clear();
         self.stack.push((root, t0, t1));
         while let Some((mut id, tmin, mut tmax)) = self.stack.pop() {
@@ -229,11 +302,18 @@ impl<'a> Tracer<'a> {
                     }
                     Some(KdNode::Leaf { triangles }) => {
                         for &t in triangles {
-                            let Some(c) = self.mesh.corners(t as usize) else {
+                            let Some(c) = self.corners(t) else {
                                 continue;
                             };
+                            if !(0..3).all(|a| {
+                                c[0][a].max(c[1][a]).max(c[2][a]) >= reach_lo[a]
+                                    && c[0][a].min(c[1][a]).min(c[2][a]) <= reach_hi[a]
+                            }) {
+                                continue;
+                            }
+                            let p = c.map(|p| p.map(f64::from));
                             let Some((th, u, v)) =
-                                intersect_triangle(ray, c.map(|p| p.map(f64::from)))
+                                moller_trumbore(ray, p[0], sub(p[1], p[0]), sub(p[2], p[0]))
                             else {
                                 continue;
                             };

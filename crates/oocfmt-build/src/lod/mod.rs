@@ -11,13 +11,14 @@
 
 mod halton;
 mod sampling;
+mod totals;
 
 use oocfmt::records::{ProxyRecord, Sample, Voxel};
 use rayon::prelude::*;
 
 use crate::kdtree::{KdNode, KdTree, NodeId};
 use crate::mesh::{Bounds, Mesh};
-use crate::raycast::{cross, dot, normalise, sub, Prepared, Tracer};
+use crate::raycast::{cross, dot, normalise, sub, triangle_corners, Prepared, Tracer};
 pub(crate) use sampling::shade;
 pub use sampling::{
     Oracle, Shade, DIAGONAL_RAYS_MAX, DIAGONAL_RAYS_MIN, FACE_RAYS_BASE, FACE_RAYS_MAX,
@@ -81,6 +82,7 @@ pub fn compute_with(
         .into_par_iter()
         .map(|t| triangle_area(mesh, t))
         .collect();
+    let corners = triangle_corners(mesh);
     let cell = |id: NodeId| {
         cells
             .binary_search_by_key(&id, |&(n, _)| n)
@@ -88,25 +90,24 @@ pub fn compute_with(
             .and_then(|k| cells.get(k))
             .map_or(Bounds::EMPTY, |&(_, c)| c)
     };
+    let totals = totals::totals(tree, &areas);
     nodes
         .par_iter()
-        // Each task allocates a mark per mesh triangle: keep tasks from getting tiny.
-        .with_min_len(64)
         .map_init(
             || {
                 (
-                    Tracer::new(mesh, tree),
-                    Collector::new(mesh.triangles.len()),
+                    Tracer::with_corners(mesh, tree, &corners),
+                    Scratch::default(),
                 )
             },
-            |(tracer, collector), &id| {
-                let area = |t: u32| areas.get(t as usize).copied().unwrap_or(0.0);
+            |(tracer, scratch), &id| {
+                let (triangles, area) = totals.of(id);
                 node_lod(
                     mesh,
                     tree,
                     tracer,
-                    collector,
-                    &area,
+                    scratch,
+                    NodeTotals { triangles, area },
                     id,
                     cell(id),
                     voxel_threshold,
@@ -153,32 +154,18 @@ pub fn cells_of(tree: &KdTree, nodes: &[NodeId]) -> Vec<(NodeId, Bounds)> {
     out
 }
 
-/// Collects the distinct triangles of subtrees without sorting them: each mesh triangle's mark
-/// holds the number of the last collection that took it.
-struct Collector {
-    marks: Vec<u32>,
-    stamp: u32,
+/// Per-thread buffers for the small subtrees whose triangles are tested one by one.
+#[derive(Default)]
+struct Scratch {
     stack: Vec<NodeId>,
     triangles: Vec<u32>,
+    prepared: Vec<Prepared>,
 }
 
-impl Collector {
-    fn new(triangles: usize) -> Collector {
-        Collector {
-            marks: vec![0; triangles],
-            stamp: 0,
-            stack: Vec::new(),
-            triangles: Vec::new(),
-        }
-    }
-
-    /// The distinct triangles under `id`, in the order a depth-first walk meets them.
-    fn collect(&mut self, tree: &KdTree, id: NodeId) -> &[u32] {
-        self.stamp = self.stamp.wrapping_add(1);
-        if self.stamp == 0 {
-            self.marks.fill(0);
-            self.stamp = 1;
-        }
+impl Scratch {
+    /// The distinct triangles under `id`, in the order a depth-first walk meets them: for
+    /// subtrees of at most [`EACH_TRIANGLE_MAX`] of them, where a linear search beats marks.
+    fn collect_small(&mut self, tree: &KdTree, id: NodeId) -> &[u32] {
         self.triangles.clear();
         self.stack.clear();
         self.stack.push(id);
@@ -186,11 +173,8 @@ impl Collector {
             match tree.node(n) {
                 Some(KdNode::Leaf { triangles }) => {
                     for &t in triangles {
-                        if let Some(m) = self.marks.get_mut(t as usize) {
-                            if *m != self.stamp {
-                                *m = self.stamp;
-                                self.triangles.push(t);
-                            }
+                        if !self.triangles.contains(&t) {
+                            self.triangles.push(t);
                         }
                     }
                 }
@@ -202,6 +186,12 @@ impl Collector {
         }
         &self.triangles
     }
+}
+
+/// What [`totals`] found under a node.
+struct NodeTotals {
+    triangles: usize,
+    area: f64,
 }
 
 /// The distinct mesh triangles referenced by the leaves under `id`, sorted.
@@ -225,27 +215,29 @@ fn node_lod<'a>(
     mesh: &'a Mesh,
     tree: &KdTree,
     tracer: &mut Tracer<'a>,
-    collector: &mut Collector,
-    area: &dyn Fn(u32) -> f64,
+    scratch: &mut Scratch,
+    totals: NodeTotals,
     id: NodeId,
     cell: Bounds,
     threshold: f32,
     diagonals: bool,
 ) -> LodData {
-    let tris = collector.collect(tree, id);
-    let area: f64 = tris.iter().map(|&t| area(t)).sum();
-    let prepared: Vec<Prepared> = if tris.len() <= EACH_TRIANGLE_MAX {
-        tris.iter()
-            .filter_map(|&t| {
-                let c = mesh.corners(t as usize)?;
-                Some(Prepared::new(t, c.map(|p| p.map(f64::from))))
-            })
-            .collect()
-    } else {
-        Vec::new()
-    };
-    let target = if tris.len() <= EACH_TRIANGLE_MAX {
-        sampling::Target::Each(&prepared)
+    let each = totals.triangles <= EACH_TRIANGLE_MAX;
+    scratch.prepared.clear();
+    if each {
+        scratch.collect_small(tree, id);
+        let Scratch {
+            triangles,
+            prepared,
+            ..
+        } = &mut *scratch;
+        prepared.extend(triangles.iter().filter_map(|&t| {
+            let c = mesh.corners(t as usize)?;
+            Some(Prepared::new(t, c.map(|p| p.map(f64::from))))
+        }));
+    }
+    let target = if each {
+        sampling::Target::Each(&scratch.prepared)
     } else {
         sampling::Target::Subtree(id)
     };
@@ -254,7 +246,7 @@ fn node_lod<'a>(
         tracer,
         target,
         cell,
-        triangles: tris.len(),
+        triangles: totals.triangles,
         threshold,
         diagonals,
         force_max: false,
@@ -263,11 +255,16 @@ fn node_lod<'a>(
     LodData {
         // No ray hit anything (a sliver too thin for the rays between them): the voxel still
         // needs a colour, so fall back on the area-weighted mean of the subtree.
-        voxel: sampled
-            .voxel
-            .unwrap_or_else(|| Voxel::Single(unoccluded_mean(mesh, tris))),
+        voxel: sampled.voxel.unwrap_or_else(|| {
+            let tris = if each {
+                scratch.triangles.clone()
+            } else {
+                subtree_triangles(tree, id)
+            };
+            Voxel::Single(unoccluded_mean(mesh, &tris))
+        }),
         proxy_samples: sampled.proxy,
-        area: (area as f32).min(f32::MAX),
+        area: (totals.area as f32).min(f32::MAX),
     }
 }
 

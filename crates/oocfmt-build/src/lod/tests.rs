@@ -302,3 +302,40 @@ fn the_recorded_sampling_matches_the_ray_counts() {
     );
     assert_eq!(LOD_SAMPLING, described);
 }
+
+#[test]
+fn subtree_totals_match_a_walk_of_every_subtree() {
+    let mesh = crate::gen::demo::demo_scene(3000);
+    let tree = tree_of(&mesh, 4);
+    let areas: Vec<f64> = (0..mesh.triangles.len())
+        .map(|t| triangle_area(&mesh, t))
+        .collect();
+    let totals = totals::totals(&tree, &areas);
+    let mut straddling = 0;
+    for k in 0..tree.nodes().len() {
+        let id = NodeId(k as u32);
+        let tris = subtree_triangles(&tree, id);
+        let refs: usize = {
+            let mut stack = vec![id];
+            let mut n = 0;
+            while let Some(x) = stack.pop() {
+                match tree.node(x) {
+                    Some(KdNode::Leaf { triangles }) => n += triangles.len(),
+                    Some(KdNode::Inner { children, .. }) => stack.extend(children.iter().flatten()),
+                    None => {}
+                }
+            }
+            n
+        };
+        straddling += usize::from(refs > tris.len());
+        let (count, area) = totals.of(id);
+        assert_eq!(count, tris.len(), "node {k}");
+        let expected: f64 = tris.iter().map(|&t| areas[t as usize]).sum();
+        assert!(
+            (area - expected).abs() <= 1e-9 * expected.max(1.0),
+            "node {k}"
+        );
+    }
+    // The scene must exercise the duplicate handling.
+    assert!(straddling > 10, "{straddling}");
+}
