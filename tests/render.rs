@@ -84,11 +84,110 @@ fn render_usage_errors_exit_2() {
     for args in [
         &["render", "missing.oocf", "-o", "x.png"][..],
         &["render", "m.oocf", "-o", "x.png", "--size", "0x10"][..],
-        &["render", "m.oocf", "-o", "x.png", "--cache", "async"][..],
+        &["render", "m.oocf", "-o", "x.png", "--cache", "paged"][..],
+        &["render", "m.oocf", "-o", "x.png", "--fetchers", "0"][..],
         &["render", "m.oocf", "-o", "x.png", "--eye", "1,2"][..],
     ] {
         let o = oocfmt(args, d);
         assert_eq!(o.status.code(), Some(2), "{args:?}");
     }
     assert!(!d.join("x.png").exists());
+}
+
+#[test]
+fn render_mmap_refuses_a_compressed_container() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    converted_mandelbulb(d);
+    let o = oocfmt(
+        &[
+            "render", "mb.oocf", "-o", "x.png", "--size", "16x12", "--cache", "mmap",
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--codec none"), "{err}");
+    assert!(!d.join("x.png").exists());
+}
+
+#[test]
+fn render_path_writes_numbered_pngs_and_per_frame_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    converted_mandelbulb(d);
+    std::fs::write(
+        d.join("path.json"),
+        r#"{"keyframes": [{"eye": [0, 0.5, 4], "look_at": [0, 0, 0]},
+                          {"eye": [3, 0.5, 1.5], "look_at": [0, 0, 0], "fov_y": 35}],
+            "frames": 3}"#,
+    )
+    .unwrap();
+    let o = oocfmt(
+        &[
+            "render",
+            "mb.oocf",
+            "-o",
+            "walk.png",
+            "--size",
+            "32x24",
+            "--poe",
+            "0",
+            "--path",
+            "path.json",
+            "--stats-json",
+            "walk.json",
+        ],
+        d,
+    );
+    ok_(&o);
+    for i in 0..3 {
+        assert!(d.join(format!("walk-000{i}.png")).exists(), "frame {i}");
+    }
+    assert!(!d.join("walk-0003.png").exists());
+    assert!(!d.join("walk.png").exists());
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(stdout.lines().filter(|l| l.starts_with("frame")).count(), 3);
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("walk.json")).unwrap()).unwrap();
+    let frames = stats.as_array().unwrap();
+    assert_eq!(frames.len(), 3);
+    for f in frames {
+        let p = &f["primary"];
+        let total: u64 = ["triangle", "voxel", "proxy", "miss"]
+            .iter()
+            .map(|k| p[k].as_u64().unwrap())
+            .sum();
+        assert_eq!(total, 32 * 24);
+        for k in ["ms", "rays_per_second", "working_set_mb", "hit_rate"] {
+            assert!(f[k].as_f64().is_some(), "{k} in {f}");
+        }
+        for k in [
+            "blocks_requested",
+            "blocks_loaded",
+            "blocks_evicted",
+            "coarse_pixels",
+        ] {
+            assert!(f[k].as_u64().is_some(), "{k} in {f}");
+        }
+    }
+    // A cold async cache: the first frame loads nothing in time and shows coarse levels.
+    assert!(
+        frames[0]["coarse_pixels"].as_u64().unwrap() > 0,
+        "{}",
+        frames[0]
+    );
+
+    let o = oocfmt(
+        &[
+            "render",
+            "mb.oocf",
+            "-o",
+            "bad.png",
+            "--path",
+            "missing.json",
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(2));
 }

@@ -1,11 +1,18 @@
-//! `oocfmt render`: one frame of a container with the reference CPU ray tracer.
+//! `oocfmt render`: one frame, or a walkthrough, of a container with the reference CPU ray
+//! tracer.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use serde::Serialize;
+
 use oocfmt_trace::output::{write_pfm, write_png};
-use oocfmt_trace::{render, BlockingCache, Camera, RenderOptions, Scene, TraceError};
+use oocfmt_trace::render::{Endings, FrameStats, Image};
+use oocfmt_trace::{
+    render, walk, AsyncCache, BlockCache, BlockingCache, CacheStats, Camera, MmapCache,
+    RenderOptions, Scene, TraceError,
+};
 
 use crate::error::{to_json, CliError, CliResult};
 
@@ -35,10 +42,22 @@ pub struct Args {
     /// 0 renders full detail
     #[arg(long, default_value_t = 1.0)]
     pub poe: f32,
-    /// Block cache: only `blocking` for now (every block is read when a ray needs it: the exact
-    /// reference); the asynchronous and mmap caches are yet to come
-    #[arg(long, default_value = "blocking", value_parser = ["blocking"])]
+    /// Block cache: `async` (fetcher threads load blocks in the background, rays never wait
+    /// and show coarser levels meanwhile; a single frame is rendered until every block it
+    /// wants is loaded), `blocking` (a ray waits for every block it needs: the exact
+    /// reference), `mmap` (the container mapped into memory and paged by the operating system;
+    /// needs a container converted with `--codec none`)
+    #[arg(long, default_value = "async", value_parser = ["async", "blocking", "mmap"])]
     pub cache: String,
+    /// Fetcher threads of the async cache
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..=64))]
+    pub fetchers: u64,
+    /// A walkthrough: a JSON list of cameras [{"eye": [x,y,z], "look_at": [x,y,z], "up"?: ..,
+    /// "fov_y"?: ..}, ...] or {"keyframes": [cameras], "frames": N}; renders numbered PNGs
+    /// (out.png -> out-0000.png, ...) with one cache kept across the frames, and figures per
+    /// frame (--stats-json then writes an array)
+    #[arg(long)]
+    pub path: Option<PathBuf>,
     /// Memory for decoded blocks, in MiB; least recently used blocks are evicted beyond it
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
     pub cache_mb: u64,
@@ -93,8 +112,118 @@ pub(crate) fn cli_error(e: TraceError) -> CliError {
             path: path.display().to_string(),
             source: std::io::Error::other(source.to_string()),
         },
-        e @ (TraceError::Camera(_) | TraceError::Options(_)) => CliError::Usage(e.to_string()),
+        e @ (TraceError::Camera(_) | TraceError::Options(_) | TraceError::Path { .. }) => {
+            CliError::Usage(e.to_string())
+        }
     }
+}
+
+/// The cache a render uses, kept by kind for what only one kind does.
+enum Cache {
+    Async(AsyncCache),
+    Blocking(BlockingCache),
+    Mmap(MmapCache),
+}
+
+impl Cache {
+    fn open(a: &Args) -> Result<(Arc<Scene>, Cache), CliError> {
+        let budget = usize::try_from(a.cache_mb << 20).unwrap_or(usize::MAX);
+        if a.cache == "mmap" {
+            let c = MmapCache::open(&a.model, budget).map_err(cli_error)?;
+            return Ok((Arc::clone(c.scene()), Cache::Mmap(c)));
+        }
+        let scene = Arc::new(Scene::open(&a.model).map_err(cli_error)?);
+        let cache = if a.cache == "blocking" {
+            Cache::Blocking(BlockingCache::new(Arc::clone(&scene), budget))
+        } else {
+            let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
+            Cache::Async(AsyncCache::new(Arc::clone(&scene), budget, fetchers))
+        };
+        Ok((scene, cache))
+    }
+
+    fn get(&self) -> &dyn BlockCache {
+        match self {
+            Cache::Async(c) => c,
+            Cache::Blocking(c) => c,
+            Cache::Mmap(c) => c,
+        }
+    }
+}
+
+/// One frame's figures: the blocks requested, loaded and evicted are those of the step after
+/// the frame.
+#[derive(Serialize)]
+struct FrameFigures {
+    frame: usize,
+    file: String,
+    ms: f64,
+    rays_per_second: f64,
+    primary: Endings,
+    /// Primary rays that ended on a voxel or a proxy: coarser than full detail.
+    coarse_pixels: u64,
+    blocks_requested: u64,
+    blocks_loaded: u64,
+    blocks_evicted: u64,
+    blocks_pending: u64,
+    working_set_mb: f64,
+    /// Of this frame's block lookups, the share that found the block resident.
+    hit_rate: f64,
+    missing_blocks: usize,
+    stats: FrameStats,
+}
+
+impl FrameFigures {
+    fn new(frame: usize, file: &Path, stats: FrameStats, before: &CacheStats) -> FrameFigures {
+        let c = &stats.cache;
+        let lookups = c.lookups.saturating_sub(before.lookups);
+        let hits = c.hits.saturating_sub(before.hits);
+        FrameFigures {
+            frame,
+            file: file.display().to_string(),
+            ms: stats.ms,
+            rays_per_second: stats.rays_per_second,
+            primary: stats.primary,
+            coarse_pixels: stats.primary.voxel + stats.primary.proxy,
+            blocks_requested: c.blocks_requested.saturating_sub(before.blocks_requested),
+            blocks_loaded: c.blocks_loaded.saturating_sub(before.blocks_loaded),
+            blocks_evicted: c.blocks_evicted.saturating_sub(before.blocks_evicted),
+            blocks_pending: c.blocks_pending,
+            working_set_mb: c.bytes_resident as f64 / 1048576.0,
+            hit_rate: if lookups > 0 {
+                hits as f64 / lookups as f64
+            } else {
+                1.0
+            },
+            missing_blocks: c.missing_blocks.len(),
+            stats,
+        }
+    }
+}
+
+/// Renders one frame and runs the cache's step after it; the stats carry the cache's figures
+/// after the step.
+fn frame(
+    scene: &Scene,
+    cache: &dyn BlockCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+) -> Result<(Image, FrameStats), CliError> {
+    let (image, mut stats) = render(scene, cache, camera, opts).map_err(cli_error)?;
+    cache.end_frame();
+    stats.cache = cache.stats();
+    Ok((image, stats))
+}
+
+/// The most frames a still image in async mode takes to load what it wants.
+const MAX_SETTLE_FRAMES: u32 = 1000;
+
+fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), CliError> {
+    let json = to_json(value)?;
+    std::fs::write(path, json + "\n").map_err(|source| CliError::Io {
+        path: path.display().to_string(),
+        source,
+    })
 }
 
 pub fn run(a: &Args) -> CliResult {
@@ -104,11 +233,31 @@ pub fn run(a: &Args) -> CliResult {
             .build_global()
             .map_err(|e| CliError::Usage(format!("--threads {n}: {e}")))?;
     }
-    let scene = Arc::new(Scene::open(&a.model).map_err(cli_error)?);
+    let (w, h) = a.size;
+    // Read the path before the model: a bad path file is reported without loading anything.
+    let path_cameras = match &a.path {
+        Some(p) => Some(walk::read_path(p, w, h).map_err(cli_error)?),
+        None => None,
+    };
+    let (scene, cache) = Cache::open(a)?;
     let m = scene.metadata();
     let origin = m.scene.origin;
     let stored = |p: [f64; 3]| [0, 1, 2].map(|k| p[k] - origin[k]);
-    let (w, h) = a.size;
+    let opts = RenderOptions {
+        poe: a.poe,
+        ..RenderOptions::default()
+    };
+    if let Some(cameras) = path_cameras {
+        let cameras: Vec<Camera> = cameras
+            .into_iter()
+            .map(|c| Camera {
+                eye: stored(c.eye),
+                look_at: stored(c.look_at),
+                ..c
+            })
+            .collect();
+        return walkthrough(a, &scene, cache.get(), &cameras, &opts);
+    }
     let mut camera = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, w, h);
     if let Some(e) = a.eye {
         camera.eye = stored(e);
@@ -120,27 +269,35 @@ pub fn run(a: &Args) -> CliResult {
         camera.up = u;
     }
     camera.fov_y = a.fov_y;
-    let budget = usize::try_from(a.cache_mb << 20).unwrap_or(usize::MAX);
-    let cache = BlockingCache::new(Arc::clone(&scene), budget);
-    let opts = RenderOptions {
-        poe: a.poe,
-        ..RenderOptions::default()
-    };
-    let mut frame = render(&scene, &cache, &camera, &opts).map_err(cli_error)?;
-    for _ in 1..a.repeat {
-        frame = render(&scene, &cache, &camera, &opts).map_err(cli_error)?;
+    let c = cache.get();
+    let mut result = frame(&scene, c, &camera, &opts)?;
+    let mut settle_frames = 1;
+    if let Cache::Async(ac) = &cache {
+        // A still image: render until a frame finds every block it wants, letting the
+        // fetchers finish between frames.
+        while result.1.cache.blocks_wanted_last_frame > 0 && settle_frames < MAX_SETTLE_FRAMES {
+            ac.wait_for_fetchers();
+            c.end_frame();
+            result = frame(&scene, c, &camera, &opts)?;
+            settle_frames += 1;
+        }
+        if result.1.cache.blocks_wanted_last_frame > 0 {
+            eprintln!(
+                "oocfmt: warning: after {settle_frames} frames the view still wants blocks \
+                 (is --cache-mb too small for it?); the image is coarser where they are missing"
+            );
+        }
     }
-    let (image, stats) = frame;
+    for _ in 1..a.repeat {
+        result = frame(&scene, c, &camera, &opts)?;
+    }
+    let (image, stats) = result;
     write_png(&a.output, image.width, image.height, &image.rgb).map_err(cli_error)?;
     if let Some(d) = &a.depth_out {
         write_pfm(d, image.width, image.height, &image.depth).map_err(cli_error)?;
     }
     if let Some(s) = &a.stats_json {
-        let json = to_json(&stats)?;
-        std::fs::write(s, json + "\n").map_err(|source| CliError::Io {
-            path: s.display().to_string(),
-            source,
-        })?;
+        write_json(s, &stats)?;
     }
     let p = &stats.primary;
     // A closed stdout (`| head`) is not an error of the render: the files are written.
@@ -156,6 +313,12 @@ pub fn run(a: &Args) -> CliResult {
         stats.rays_per_second / 1e6,
         stats.threads
     );
+    if settle_frames > 1 {
+        let _ = writeln!(
+            out,
+            "async cache: {settle_frames} frames to load the view's blocks"
+        );
+    }
     let _ = writeln!(
         out,
         "primary rays: {} triangle, {} voxel, {} proxy, {} miss",
@@ -173,6 +336,61 @@ pub fn run(a: &Args) -> CliResult {
     );
     for b in &c.missing_blocks {
         eprintln!("oocfmt: warning: block {} is missing: {}", b.id, b.error);
+    }
+    Ok(0)
+}
+
+/// Renders `cameras` in order with one cache, writing numbered PNGs and a line of figures per
+/// frame.
+fn walkthrough(
+    a: &Args,
+    scene: &Scene,
+    cache: &dyn BlockCache,
+    cameras: &[Camera],
+    opts: &RenderOptions,
+) -> CliResult {
+    let mut out = std::io::stdout().lock();
+    let mut all = Vec::with_capacity(cameras.len());
+    let mut before = cache.stats();
+    let mut reported_missing = 0;
+    for (i, camera) in cameras.iter().enumerate() {
+        let (image, stats) = frame(scene, cache, camera, opts)?;
+        let file = walk::frame_file(&a.output, i);
+        write_png(&file, image.width, image.height, &image.rgb).map_err(cli_error)?;
+        if let Some(d) = &a.depth_out {
+            let dfile = walk::frame_file(d, i);
+            write_pfm(&dfile, image.width, image.height, &image.depth).map_err(cli_error)?;
+        }
+        for b in stats.cache.missing_blocks.iter().skip(reported_missing) {
+            eprintln!("oocfmt: warning: block {} is missing: {}", b.id, b.error);
+        }
+        reported_missing = stats.cache.missing_blocks.len();
+        let next = stats.cache.clone();
+        let f = FrameFigures::new(i, &file, stats, &before);
+        before = next;
+        let p = &f.primary;
+        let _ = writeln!(
+            out,
+            "frame {i:4}: {:8.1} ms {:7.2} Mrays/s | tri {} voxel {} proxy {} miss {} | blocks \
+             +{} requested +{} loaded +{} evicted {} pending | {:.1} MiB | hit {:.1}% | {}",
+            f.ms,
+            f.rays_per_second / 1e6,
+            p.triangle,
+            p.voxel,
+            p.proxy,
+            p.miss,
+            f.blocks_requested,
+            f.blocks_loaded,
+            f.blocks_evicted,
+            f.blocks_pending,
+            f.working_set_mb,
+            100.0 * f.hit_rate,
+            file.display()
+        );
+        all.push(f);
+    }
+    if let Some(s) = &a.stats_json {
+        write_json(s, &all)?;
     }
     Ok(0)
 }

@@ -18,6 +18,8 @@ pub enum TraceError {
     Camera(String),
     #[error("render options: {0}")]
     Options(String),
+    #[error("{path}: {message}")]
+    Path { path: PathBuf, message: String },
 }
 
 impl TraceError {

@@ -13,8 +13,9 @@ pub mod render;
 pub mod scene;
 pub mod shade;
 pub mod traverse;
+pub mod walk;
 
-pub use cache::{BlockCache, BlockingCache, CacheStats};
+pub use cache::{AsyncCache, BlockCache, BlockingCache, CacheStats, MmapCache};
 pub use camera::Camera;
 pub use error::TraceError;
 pub use render::{render, FrameStats, Image, RenderOptions};

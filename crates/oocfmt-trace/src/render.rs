@@ -132,6 +132,7 @@ pub fn render(
                         }
                     }
                 }
+                memo.flush(cache);
                 (tile, rgb, depth, endings)
             },
         )

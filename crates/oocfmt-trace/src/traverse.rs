@@ -49,17 +49,43 @@ pub struct Hit {
 }
 
 /// Blocks one group of rays (a tile) has looked up: the shared cache is asked once per block
-/// per tile rather than once per ray.
+/// per tile rather than once per ray. The blocks the rays wanted and did not get are gathered
+/// here too, with their priorities, and handed to the cache once per tile by [`Memo::flush`].
 #[derive(Default)]
 pub struct Memo {
     treelets: HashMap<u32, Option<Arc<TreeletData>>>,
     triangles: HashMap<u32, Option<Arc<TriangleData>>>,
+    wanted: HashMap<u32, f32>,
+    flushed: Vec<(u32, f32)>,
 }
 
 impl Memo {
     pub fn clear(&mut self) {
         self.treelets.clear();
         self.triangles.clear();
+        self.wanted.clear();
+    }
+
+    /// Hands the blocks wanted since the last flush to the cache as requests.
+    pub fn flush(&mut self, cache: &dyn BlockCache) {
+        if self.wanted.is_empty() {
+            return;
+        }
+        self.flushed.clear();
+        self.flushed.extend(self.wanted.drain());
+        cache.request(&self.flushed);
+    }
+
+    /// One ray wanted block `id` and did not get it. The priority of a request is the sum over
+    /// its rays of 1 plus the angular size of the region (radius over distance): many rays,
+    /// and big, near regions first.
+    fn want(&mut self, id: u32, radius: f32, t: f32) {
+        let size = if t > 0.0 && radius.is_finite() {
+            (radius / t).min(1.0)
+        } else {
+            1.0
+        };
+        *self.wanted.entry(id).or_insert(0.0) += 1.0 + size;
     }
 
     fn treelets(&mut self, cache: &dyn BlockCache, id: u32) -> Option<&Arc<TreeletData>> {
@@ -80,6 +106,7 @@ impl Memo {
 #[derive(Clone, Copy)]
 struct LastVoxel {
     voxel: Voxel,
+    radius: f32,
     t: f32,
     axis: u8,
 }
@@ -152,7 +179,11 @@ impl<'a> Tracer<'a> {
         let (t0, t1, axis) = ray_box(ray, self.lo, self.hi, eps, 0.0, f32::INFINITY)?;
         let (root_block, root_treelet) = self.root?;
         let mut cur_id = root_block;
-        let mut cur = Arc::clone(memo.treelets(self.cache, root_block)?);
+        let Some(root_data) = memo.treelets(self.cache, root_block) else {
+            memo.want(root_block, f32::INFINITY, t0);
+            return None;
+        };
+        let mut cur = Arc::clone(root_data);
         let root = *cur.roots.get(root_treelet as usize)?;
         stack.push(Entry {
             block: root_block,
@@ -170,6 +201,7 @@ impl<'a> Tracer<'a> {
             }
             if e.block != cur_id {
                 let Some(d) = memo.treelets(self.cache, e.block) else {
+                    memo.want(e.block, f32::INFINITY, e.t0);
                     continue;
                 };
                 cur = Arc::clone(d);
@@ -232,7 +264,12 @@ impl<'a> Tracer<'a> {
                         else {
                             break;
                         };
-                        last = Some(LastVoxel { voxel, t: t0, axis });
+                        last = Some(LastVoxel {
+                            voxel,
+                            radius,
+                            t: t0,
+                            axis,
+                        });
                         if self.lod_c > 0.0 && radius <= t0 * self.lod_c {
                             offer(
                                 &mut best,
@@ -243,6 +280,7 @@ impl<'a> Tracer<'a> {
                             break;
                         }
                         let Some(child) = memo.treelets(self.cache, child_block) else {
+                            memo.want(child_block, radius, t0);
                             match proxy.and_then(|p| self.proxies.get(p as usize)) {
                                 Some(p) => {
                                     let s = proxy_sample(&p.samples, ray);
@@ -317,6 +355,10 @@ impl<'a> Tracer<'a> {
                                 }
                             }
                             None => {
+                                match last {
+                                    Some(lv) => memo.want(block, lv.radius, lv.t),
+                                    None => memo.want(block, f32::INFINITY, t0),
+                                }
                                 if let Some(lv) = last {
                                     let s = voxel_sample(&lv.voxel, lv.axis, ray);
                                     offer(&mut best, &mut best_t, lv.t, Surface::Voxel(s));

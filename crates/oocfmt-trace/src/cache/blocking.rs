@@ -9,15 +9,9 @@
 use std::collections::{BTreeMap, HashMap};
 use std::sync::{Arc, Mutex, MutexGuard};
 
-use super::{BlockCache, CacheStats, MissingBlock};
+use super::{BlockCache, CacheStats, Data, MissingBlock};
 use crate::blocks::{TreeletData, TriangleData};
 use crate::scene::Scene;
-
-#[derive(Clone)]
-enum Data {
-    Treelets(Arc<TreeletData>),
-    Triangles(Arc<TriangleData>),
-}
 
 struct Slot {
     data: Data,
@@ -43,14 +37,21 @@ struct Table {
 pub struct BlockingCache {
     scene: Arc<Scene>,
     budget: usize,
+    mode: &'static str,
     table: Mutex<Table>,
 }
 
 impl BlockingCache {
     pub fn new(scene: Arc<Scene>, budget_bytes: usize) -> BlockingCache {
+        Self::with_mode(scene, budget_bytes, "blocking")
+    }
+
+    /// The mmap cache is this cache over a mapped file; only the name in the stats differs.
+    pub(crate) fn with_mode(scene: Arc<Scene>, budget_bytes: usize, mode: &'static str) -> Self {
         BlockingCache {
             scene,
             budget: budget_bytes,
+            mode,
             table: Mutex::new(Table::default()),
         }
     }
@@ -95,10 +96,7 @@ impl BlockingCache {
         if let Some(slot) = t.slots.get(&id) {
             return Some(slot.data.clone());
         }
-        let bytes = match &data {
-            Data::Treelets(d) => d.bytes(),
-            Data::Triangles(d) => d.bytes(),
-        };
+        let bytes = data.bytes();
         t.clock += 1;
         let stamp = t.clock;
         t.slots.insert(
@@ -164,7 +162,7 @@ impl BlockCache for BlockingCache {
     fn stats(&self) -> CacheStats {
         let t = self.lock();
         CacheStats {
-            mode: "blocking",
+            mode: self.mode,
             budget_bytes: self.budget as u64,
             bytes_resident: t.resident as u64,
             peak_bytes_resident: t.peak as u64,
@@ -172,6 +170,10 @@ impl BlockCache for BlockingCache {
             hits: t.hits,
             blocks_loaded: t.loaded,
             blocks_evicted: t.evicted,
+            blocks_requested: 0,
+            blocks_pending: 0,
+            blocks_dropped: 0,
+            blocks_wanted_last_frame: 0,
             missing_blocks: t
                 .missing
                 .iter()

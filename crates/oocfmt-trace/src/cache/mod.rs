@@ -1,22 +1,33 @@
 //! Block caches: where the traversal gets decoded blocks. The traversal only sees the
-//! [`BlockCache`] trait, so the blocking cache here and the asynchronous and mmap caches to come
-//! are interchangeable.
+//! [`BlockCache`] trait, so the blocking, asynchronous and mmap caches are interchangeable.
 
+pub mod asynchronous;
 pub mod blocking;
+pub mod mmap;
 
 use std::sync::Arc;
 
 use serde::Serialize;
 
 use crate::blocks::{TreeletData, TriangleData};
+use crate::scene::Scene;
 
+pub use asynchronous::AsyncCache;
 pub use blocking::BlockingCache;
+pub use mmap::MmapCache;
 
 pub trait BlockCache: Send + Sync {
-    /// Treelet block `id`, or None when it is not available (a blocking cache: it failed to
-    /// read or decode and is missing for good).
+    /// Treelet block `id`, or None when it is not available: missing for good (it failed to
+    /// read or decode), or, in an asynchronous cache, not loaded yet.
     fn treelets(&self, id: u32) -> Option<Arc<TreeletData>>;
     fn triangles(&self, id: u32) -> Option<Arc<TriangleData>>;
+    /// Blocks the rays of one tile wanted and did not get, each with its priority (summed over
+    /// the rays). A cache that loads on demand ignores it.
+    fn request(&self, _wanted: &[(u32, f32)]) {}
+    /// The step between two frames: an asynchronous cache publishes what its fetchers loaded,
+    /// evicts and hands the fetchers the new requests. Render threads must not be inside a
+    /// frame while it runs (it is correct then too, only less useful).
+    fn end_frame(&self) {}
     fn stats(&self) -> CacheStats;
 }
 
@@ -30,6 +41,16 @@ pub struct CacheStats {
     pub hits: u64,
     pub blocks_loaded: u64,
     pub blocks_evicted: u64,
+    /// Asynchronous cache: distinct blocks handed to the fetchers, over all frames.
+    pub blocks_requested: u64,
+    /// Asynchronous cache: blocks queued or being fetched now.
+    pub blocks_pending: u64,
+    /// Asynchronous cache: blocks fetched but not kept, because every resident block was in
+    /// use by the frame and there was no room.
+    pub blocks_dropped: u64,
+    /// Asynchronous cache: distinct blocks the last frame wanted and did not find resident
+    /// (blocks missing for good aside). 0: the frame showed everything it asked for.
+    pub blocks_wanted_last_frame: u64,
     /// Blocks that could not be read or decoded, by id, with the reason; never retried.
     pub missing_blocks: Vec<MissingBlock>,
 }
@@ -38,4 +59,38 @@ pub struct CacheStats {
 pub struct MissingBlock {
     pub id: u32,
     pub error: String,
+}
+
+/// A decoded block of either kind.
+#[derive(Clone)]
+pub(crate) enum Data {
+    Treelets(Arc<TreeletData>),
+    Triangles(Arc<TriangleData>),
+}
+
+impl Data {
+    pub(crate) fn bytes(&self) -> usize {
+        match self {
+            Data::Treelets(d) => d.bytes(),
+            Data::Triangles(d) => d.bytes(),
+        }
+    }
+
+    /// Reads and decodes block `id` as the kind its directory entry names.
+    pub(crate) fn load(scene: &Scene, id: u32) -> Result<Data, String> {
+        let kind = scene.reader().entry(id).map_err(|e| e.to_string())?.kind;
+        match kind {
+            oocfmt::BlockKind::Treelet => scene
+                .load_treelets(id)
+                .map(|d| Data::Treelets(Arc::new(d)))
+                .map_err(|e| e.to_string()),
+            oocfmt::BlockKind::Triangle => scene
+                .load_triangles(id)
+                .map(|d| Data::Triangles(Arc::new(d)))
+                .map_err(|e| e.to_string()),
+            k => Err(format!(
+                "a {k:?} block referenced as a treelet or triangle block"
+            )),
+        }
+    }
 }

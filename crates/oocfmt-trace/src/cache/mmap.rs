@@ -1,0 +1,63 @@
+//! The mmap cache, the baseline of Wald et al. (2004) and Yoon et al. (2006): the container is
+//! mapped into memory and the operating system pages its bytes in on first touch; blocks are
+//! decoded from the mapped bytes the first time a ray needs them, and the ray waits. Only an
+//! uncompressed container can be paged this way: compressed blocks would be decompressed into
+//! copies, which is the blocking cache again.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use oocfmt::{BlockKind, CodecId, ReadOptions, Reader};
+
+use super::{BlockCache, BlockingCache, CacheStats};
+use crate::blocks::{TreeletData, TriangleData};
+use crate::error::TraceError;
+use crate::scene::Scene;
+
+pub struct MmapCache {
+    inner: BlockingCache,
+}
+
+impl MmapCache {
+    /// Maps `path` and checks that its treelet and triangle blocks are stored uncompressed.
+    /// Decoded blocks are kept up to `budget_bytes`, least recently used evicted beyond.
+    pub fn open(path: &Path, budget_bytes: usize) -> Result<MmapCache, TraceError> {
+        let reader = Reader::open_mmap(path, ReadOptions::default())?;
+        let compressed = reader
+            .entries()
+            .iter()
+            .filter(|e| matches!(e.kind, BlockKind::Treelet | BlockKind::Triangle))
+            .filter(|e| e.codec != CodecId::None)
+            .count();
+        if compressed > 0 {
+            return Err(TraceError::Options(format!(
+                "--cache mmap needs an uncompressed container, and {} has {compressed} \
+                 compressed blocks; convert it with `--codec none` (or use --cache async or \
+                 --cache blocking)",
+                path.display()
+            )));
+        }
+        let scene = Arc::new(Scene::from_reader(reader));
+        Ok(MmapCache {
+            inner: BlockingCache::with_mode(scene, budget_bytes, "mmap"),
+        })
+    }
+
+    pub fn scene(&self) -> &Arc<Scene> {
+        self.inner.scene()
+    }
+}
+
+impl BlockCache for MmapCache {
+    fn treelets(&self, id: u32) -> Option<Arc<TreeletData>> {
+        self.inner.treelets(id)
+    }
+
+    fn triangles(&self, id: u32) -> Option<Arc<TriangleData>> {
+        self.inner.triangles(id)
+    }
+
+    fn stats(&self) -> CacheStats {
+        self.inner.stats()
+    }
+}

@@ -1,0 +1,269 @@
+//! The three caches against each other: at --poe 0, once the asynchronous cache has loaded
+//! what a view wants, blocking, mmap and async give the same image; the asynchronous cache
+//! stays within its budget under many render threads and many frames; a corrupted block is
+//! survived and reported; a cold walkthrough starts coarse and converges.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use oocfmt::{BlockKind, Codec, WriteOptions};
+use oocfmt_build::convert::{convert, ConvertOptions};
+use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
+use oocfmt_build::layout::LayoutOptions;
+use oocfmt_build::progress::NoProgress;
+use oocfmt_trace::render::{FrameStats, Image};
+use oocfmt_trace::{
+    render, AsyncCache, BlockCache, BlockingCache, Camera, MmapCache, RenderOptions, Scene,
+};
+
+const W: u32 = 64;
+const H: u32 = 48;
+
+/// A Mandelbulb container with uncompressed blocks (what the mmap cache wants) of the smallest
+/// size (many blocks).
+fn uncompressed_mandelbulb(dir: &Path, triangles: u64) -> PathBuf {
+    let obj = dir.join("mb.obj");
+    let opts = MandelbulbOptions {
+        triangles,
+        ..MandelbulbOptions::default()
+    };
+    mandelbulb::write_obj(&obj, &opts, &mut |_, _| {}).unwrap();
+    let out = dir.join("mb-raw.oocf");
+    let opts = ConvertOptions {
+        mem_limit: 1 << 30,
+        layout: LayoutOptions {
+            write: WriteOptions {
+                codec: Codec::None,
+                ..WriteOptions::default()
+            }
+            .with_block_size(4096)
+            .unwrap(),
+            ..LayoutOptions::default()
+        },
+        ..ConvertOptions::default()
+    };
+    convert(&[obj], &out, &opts, &mut NoProgress).unwrap();
+    out
+}
+
+fn views(scene: &Scene) -> Vec<Camera> {
+    let m = scene.metadata();
+    let (lo, hi) = (m.scene.bounds_min, m.scene.bounds_max);
+    let framing = Camera::framing(lo, hi, W, H);
+    let c = [0, 1, 2].map(|k| (f64::from(lo[k]) + f64::from(hi[k])) / 2.0);
+    let ext = (0..3).map(|k| f64::from(hi[k] - lo[k])).fold(0.0, f64::max);
+    // Close to one side: a different and smaller set of blocks.
+    let close = Camera {
+        eye: [c[0] - 0.75 * ext, c[1], c[2]],
+        look_at: [c[0], c[1] + 0.1 * ext, c[2] + 0.1 * ext],
+        up: [0.0, 1.0, 0.0],
+        fov_y: 40.0,
+        width: W,
+        height: H,
+    };
+    vec![framing, close]
+}
+
+const POE0: RenderOptions = RenderOptions {
+    poe: 0.0,
+    background: [0.05, 0.06, 0.08],
+};
+
+/// Renders with the asynchronous cache until a frame finds every block it wants (the
+/// fetchers finish between frames); returns that frame and how many frames it took.
+fn converge(scene: &Scene, cache: &AsyncCache, cam: &Camera) -> (Image, FrameStats, usize) {
+    for n in 1..=200 {
+        let (img, stats) = render(scene, cache, cam, &POE0).unwrap();
+        cache.end_frame();
+        if cache.stats().blocks_wanted_last_frame == 0 {
+            return (img, stats, n);
+        }
+        cache.wait_for_fetchers();
+        cache.end_frame();
+    }
+    panic!(
+        "the async cache did not converge in 200 frames: {:?}",
+        cache.stats()
+    );
+}
+
+#[test]
+fn blocking_mmap_and_async_give_the_same_image_at_poe_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = uncompressed_mandelbulb(dir.path(), 5_000);
+    let scene = Arc::new(Scene::open(&path).unwrap());
+    let mmap = MmapCache::open(&path, 256 << 20).unwrap();
+    for cam in views(&scene) {
+        let blocking = BlockingCache::new(Arc::clone(&scene), 256 << 20);
+        let (a, _) = render(&scene, &blocking, &cam, &POE0).unwrap();
+        let (b, sb) = render(mmap.scene(), &mmap, &cam, &POE0).unwrap();
+        assert_eq!(sb.cache.mode, "mmap");
+        let cache = AsyncCache::new(Arc::clone(&scene), 256 << 20, 2);
+        let (c, sc, frames) = converge(&scene, &cache, &cam);
+        assert!(frames > 1, "a cold async cache needs more than one frame");
+        assert_eq!(sc.primary.voxel + sc.primary.proxy, 0, "{:?}", sc.primary);
+        assert!(a.depth.iter().any(|d| d.is_finite()));
+        assert_eq!(a.rgb, b.rgb, "mmap differs from blocking");
+        assert_eq!(a.depth, b.depth);
+        assert_eq!(a.rgb, c.rgb, "async differs from blocking");
+        assert_eq!(a.depth, c.depth);
+    }
+}
+
+#[test]
+fn mmap_refuses_a_compressed_container() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = common::mandelbulb(dir.path(), 2_000);
+    let e = MmapCache::open(&path, 1 << 20).err().unwrap().to_string();
+    assert!(e.contains("--codec none"), "{e}");
+}
+
+#[test]
+fn async_stays_within_a_tiny_budget_under_many_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = uncompressed_mandelbulb(dir.path(), 8_000);
+    let scene = Arc::new(Scene::open(&path).unwrap());
+    // Close views from opposite sides: different blocks.
+    let m = scene.metadata();
+    let (lo, hi) = (m.scene.bounds_min, m.scene.bounds_max);
+    let c = [0, 1, 2].map(|k| (f64::from(lo[k]) + f64::from(hi[k])) / 2.0);
+    let ext = (0..3).map(|k| f64::from(hi[k] - lo[k])).fold(0.0, f64::max);
+    let cams: Vec<Camera> = [-0.8, 0.8]
+        .map(|side| Camera {
+            eye: [c[0] + side * ext, c[1], c[2]],
+            look_at: c,
+            up: [0.0, 1.0, 0.0],
+            fov_y: 30.0,
+            width: W,
+            height: H,
+        })
+        .to_vec();
+    // The working set of each view, from a blocking cache that keeps everything.
+    let mut references = Vec::new();
+    let mut sets = Vec::new();
+    for cam in &cams {
+        let big = BlockingCache::new(Arc::clone(&scene), 256 << 20);
+        let (img, st) = render(&scene, &big, cam, &POE0).unwrap();
+        references.push(img);
+        sets.push(st.cache.bytes_resident as usize);
+    }
+    let budget = sets.iter().copied().max().unwrap() * 11 / 10;
+    let both = BlockingCache::new(Arc::clone(&scene), 256 << 20);
+    for cam in &cams {
+        render(&scene, &both, cam, &POE0).unwrap();
+    }
+    let union = both.stats().bytes_resident as usize;
+    assert!(
+        budget < union,
+        "the views' blocks ({union} bytes) fit {budget}"
+    );
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(8)
+        .build()
+        .unwrap();
+    let cache = AsyncCache::new(Arc::clone(&scene), budget, 3);
+    pool.install(|| {
+        // Switching views every few frames, without waiting for the fetchers: blocks of the
+        // other view must be evicted to make room.
+        for f in 0..40 {
+            let cam = &cams[(f / 4) % cams.len()];
+            let (img, _) = render(&scene, &cache, cam, &POE0).unwrap();
+            assert_eq!(img.rgb.len(), (3 * W * H) as usize);
+            cache.end_frame();
+            let s = cache.stats();
+            assert!(
+                s.bytes_resident <= budget as u64 && s.peak_bytes_resident <= budget as u64,
+                "frame {f}: {s:?} over the budget {budget}"
+            );
+        }
+        for (cam, reference) in cams.iter().zip(&references) {
+            let (img, _, _) = converge(&scene, &cache, cam);
+            assert_eq!(img.rgb, reference.rgb);
+            assert_eq!(img.depth, reference.depth);
+        }
+    });
+    let s = cache.stats();
+    assert!(s.blocks_evicted > 0, "{s:?}");
+    assert!(s.peak_bytes_resident <= budget as u64, "{s:?}");
+    assert!(s.missing_blocks.is_empty(), "{s:?}");
+}
+
+#[test]
+fn a_corrupted_block_in_async_mode_is_reported_and_the_frame_completes() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = common::mandelbulb(dir.path(), 5_000);
+    let scene = Scene::open(&path).unwrap();
+    let (id, e) = (0u32..)
+        .zip(scene.reader().entries())
+        .find(|(_, e)| e.kind == BlockKind::Triangle)
+        .map(|(id, e)| (id, *e))
+        .unwrap();
+    drop(scene);
+    let mut bytes = std::fs::read(&path).unwrap();
+    let at = (e.offset + u64::from(e.stored_length) / 2) as usize;
+    bytes[at] ^= 0x40;
+    std::fs::write(&path, &bytes).unwrap();
+    let scene = Arc::new(Scene::open(&path).unwrap());
+    let cache = AsyncCache::new(Arc::clone(&scene), 64 << 20, 2);
+    let m = scene.metadata();
+    let cam = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, W, H);
+    let (img, stats, _) = converge(&scene, &cache, &cam);
+    let s = cache.stats();
+    let missing: Vec<u32> = s.missing_blocks.iter().map(|b| b.id).collect();
+    assert_eq!(missing, vec![id], "{:?}", s.missing_blocks);
+    assert!(
+        s.missing_blocks[0]
+            .error
+            .to_lowercase()
+            .contains("checksum"),
+        "{:?}",
+        s.missing_blocks
+    );
+    assert_eq!(img.rgb.len(), (3 * W * H) as usize);
+    assert!(stats.primary.triangle > 0);
+}
+
+#[test]
+fn a_cold_walkthrough_starts_coarse_and_converges_to_the_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = common::mandelbulb(dir.path(), 8_000);
+    let scene = Arc::new(Scene::open(&path).unwrap());
+    let cams = views(&scene);
+    // A path from the framing view to the close one, in 6 steps.
+    let path_cams: Vec<Camera> = (0..6)
+        .map(|i| {
+            let u = f64::from(i) / 5.0;
+            let mix = |p: [f64; 3], q: [f64; 3]| [0, 1, 2].map(|k| p[k] + (q[k] - p[k]) * u);
+            Camera {
+                eye: mix(cams[0].eye, cams[1].eye),
+                look_at: mix(cams[0].look_at, cams[1].look_at),
+                fov_y: cams[0].fov_y + (cams[1].fov_y - cams[0].fov_y) * u,
+                ..cams[0]
+            }
+        })
+        .collect();
+    let cache = AsyncCache::new(Arc::clone(&scene), 64 << 20, 2);
+    let mut first = None;
+    for cam in &path_cams {
+        let (_, stats) = render(&scene, &cache, cam, &POE0).unwrap();
+        cache.end_frame();
+        first.get_or_insert(stats);
+    }
+    let first = first.unwrap();
+    assert!(
+        first.primary.voxel + first.primary.proxy > 0,
+        "a cold first frame shows coarse levels: {:?}",
+        first.primary
+    );
+    assert_eq!(first.primary.triangle, 0, "{:?}", first.primary);
+    let last = path_cams.last().unwrap();
+    let (img, stats, _) = converge(&scene, &cache, last);
+    let blocking = BlockingCache::new(Arc::clone(&scene), 64 << 20);
+    let (reference, _) = render(&scene, &blocking, last, &POE0).unwrap();
+    assert_eq!(stats.primary.voxel + stats.primary.proxy, 0);
+    assert_eq!(img.rgb, reference.rgb);
+    assert_eq!(img.depth, reference.depth);
+}
