@@ -52,6 +52,10 @@ pub struct Args {
     /// Fetcher threads of the async cache
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..=64))]
     pub fetchers: u64,
+    /// Async cache: block levels the fetchers read ahead below each block a ray asked for, into
+    /// free room only (less than half the budget in use); 0 reads only what rays ask for
+    #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_READ_AHEAD, value_parser = clap::value_parser!(u8).range(0..=16))]
+    pub read_ahead: u8,
     /// A walkthrough: a JSON list of cameras [{"eye": [x,y,z], "look_at": [x,y,z], "up"?: ..,
     /// "fov_y"?: ..}, ...] or {"keyframes": [cameras], "frames": N}; renders numbered PNGs
     /// (out.png -> out-0000.png, ...) with one cache kept across the frames, and figures per
@@ -137,7 +141,12 @@ impl Cache {
             Cache::Blocking(BlockingCache::new(Arc::clone(&scene), budget))
         } else {
             let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
-            Cache::Async(AsyncCache::new(Arc::clone(&scene), budget, fetchers))
+            Cache::Async(AsyncCache::with_read_ahead(
+                Arc::clone(&scene),
+                budget,
+                fetchers,
+                a.read_ahead,
+            ))
         };
         Ok((scene, cache))
     }

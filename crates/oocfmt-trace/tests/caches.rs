@@ -267,3 +267,43 @@ fn a_cold_walkthrough_starts_coarse_and_converges_to_the_reference() {
     assert_eq!(img.rgb, reference.rgb);
     assert_eq!(img.depth, reference.depth);
 }
+
+/// Frames of one view until no block is missing, each followed by the step between frames and
+/// a wait for the fetchers (as a still image converges).
+fn frames_to_full_detail(scene: &Scene, cache: &AsyncCache, cam: &Camera) -> usize {
+    for n in 1..=200 {
+        let (_, stats) = render(scene, cache, cam, &POE0).unwrap();
+        cache.end_frame();
+        cache.wait_for_fetchers();
+        if stats.primary.voxel + stats.primary.proxy == 0
+            && stats.cache.blocks_wanted_last_frame == 0
+        {
+            return n;
+        }
+    }
+    panic!("the view never reached full detail");
+}
+
+#[test]
+fn reading_ahead_fills_a_cold_view_in_fewer_frames_and_only_into_free_room() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = common::mandelbulb(dir.path(), 20_000);
+    let scene = Arc::new(Scene::open(&path).unwrap());
+    let cam = views(&scene)[1];
+    let budget = 256 << 20;
+    let plain = AsyncCache::with_read_ahead(Arc::clone(&scene), budget, 2, 0);
+    let without = frames_to_full_detail(&scene, &plain, &cam);
+    assert_eq!(plain.stats().blocks_looked_ahead, 0);
+    let ahead = AsyncCache::new(Arc::clone(&scene), budget, 2);
+    let with = frames_to_full_detail(&scene, &ahead, &cam);
+    let read = ahead.stats().blocks_looked_ahead;
+    assert!(
+        with < without,
+        "reading ahead {with} frames, without {without} ({read} blocks read ahead)"
+    );
+    // A budget that the view's blocks fill more than half of reads ahead into free room only.
+    let needed = plain.stats().bytes_resident as usize;
+    let tight = AsyncCache::new(Arc::clone(&scene), needed + needed / 4, 2);
+    frames_to_full_detail(&scene, &tight, &cam);
+    assert!(tight.stats().peak_bytes_resident as usize <= needed + needed / 4);
+}

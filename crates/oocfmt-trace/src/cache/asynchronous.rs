@@ -29,6 +29,12 @@ const SHARDS: usize = 16;
 /// Priority of the root block: nothing shows without it.
 const ROOT_PRIORITY: f32 = 1e9;
 
+/// How many block levels below a block a ray asked for the fetchers read ahead by default
+/// (the child blocks of each treelet block they decode, and theirs): rays reach one level
+/// further per frame at most, so without reading ahead a cold view fills in a level every
+/// frame or two.
+pub const DEFAULT_READ_AHEAD: u8 = 2;
+
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     // Every update under these locks is a few field writes or a container operation: a panic
     // elsewhere cannot leave them half done in a way that matters.
@@ -47,9 +53,17 @@ struct Resident {
 struct Queue {
     /// Block ids, lowest priority first: fetchers pop from the end.
     ids: Vec<u32>,
+    /// Look-ahead work, served only when `ids` is empty and the cache has free room: block ids
+    /// with how many more levels to read ahead below them.
+    ahead: Vec<(u32, u8)>,
+    /// Blocks queued or fetched ahead since the last step between frames.
+    seen_ahead: rustc_hash::FxHashSet<u32>,
     in_flight: usize,
     shutdown: bool,
 }
+
+/// A block a fetcher read: its id, the decoded data or why not, and whether it was read ahead.
+type Fetched = (u32, Result<Data, String>, bool);
 
 /// What the cache and its fetchers share.
 struct Shared {
@@ -59,8 +73,14 @@ struct Shared {
     work: Condvar,
     /// Signalled when a fetcher finishes a block.
     finished: Condvar,
-    /// Blocks fetched since the last publication, or why they could not be.
-    done: Mutex<Vec<(u32, Result<Data, String>)>>,
+    /// Blocks fetched since the last publication, or why they could not be, and whether they
+    /// were read ahead (kept only in free room, never evicting for them).
+    done: Mutex<Vec<Fetched>>,
+    /// Decoded bytes published, and the budget: look-ahead reads stop at half of it.
+    resident: AtomicU64,
+    budget: u64,
+    /// Levels read ahead below each block a ray asked for (0: none).
+    read_ahead: u8,
 }
 
 /// What only the step between frames changes.
@@ -71,6 +91,8 @@ struct Book {
     loaded: u64,
     evicted: u64,
     requested: u64,
+    /// Look-ahead requests among `requested`.
+    looked_ahead: u64,
     dropped: u64,
     wanted_last_frame: u64,
     /// Handed to the fetchers and not yet published.
@@ -96,6 +118,17 @@ impl AsyncCache {
     /// one). The root treelet block is loaded here, as the proxies are at open, so that the
     /// first frame has the root's voxels and proxies to show.
     pub fn new(scene: Arc<Scene>, budget_bytes: usize, fetchers: usize) -> AsyncCache {
+        AsyncCache::with_read_ahead(scene, budget_bytes, fetchers, DEFAULT_READ_AHEAD)
+    }
+
+    /// [`AsyncCache::new`] reading `levels` block levels ahead of the blocks rays ask for, into
+    /// free room only (while less than half the budget is resident); 0 reads nothing ahead.
+    pub fn with_read_ahead(
+        scene: Arc<Scene>,
+        budget_bytes: usize,
+        fetchers: usize,
+        levels: u8,
+    ) -> AsyncCache {
         let root = scene.metadata().root.map(|r| r.block);
         let shared = Arc::new(Shared {
             scene,
@@ -103,6 +136,9 @@ impl AsyncCache {
             work: Condvar::new(),
             finished: Condvar::new(),
             done: Mutex::new(Vec::new()),
+            resident: AtomicU64::new(0),
+            budget: budget_bytes as u64,
+            read_ahead: levels,
         });
         let handles = (0..fetchers.max(1))
             .map(|_| {
@@ -125,7 +161,7 @@ impl AsyncCache {
         };
         if let Some(r) = root {
             let loaded = Data::load(&cache.shared.scene, r);
-            lock(&cache.shared.done).push((r, loaded));
+            lock(&cache.shared.done).push((r, loaded, false));
             let mut book = lock(&cache.book);
             cache.publish(&mut book, 0);
         }
@@ -189,7 +225,7 @@ impl AsyncCache {
             .collect();
         victims.sort_unstable();
         let mut victims = victims.into_iter();
-        for (id, result) in done {
+        for (id, result, ahead) in done {
             book.fetching.remove(&id);
             let data = match result {
                 Ok(d) => d,
@@ -199,6 +235,24 @@ impl AsyncCache {
                 }
             };
             let bytes = data.bytes();
+            if ahead {
+                if table.contains_key(&id) || book.resident_bytes + bytes > self.budget {
+                    continue;
+                }
+                book.looked_ahead += 1;
+                book.resident_bytes += bytes;
+                book.loaded += 1;
+                table.insert(
+                    id,
+                    Arc::new(Resident {
+                        data,
+                        bytes,
+                        // Unused so far: the first to go when room is needed.
+                        last_used: AtomicU64::new(0),
+                    }),
+                );
+                continue;
+            }
             if bytes > self.budget {
                 book.missing.entry(id).or_insert_with(|| {
                     format!(
@@ -233,12 +287,15 @@ impl AsyncCache {
             );
         }
         book.peak = book.peak.max(book.resident_bytes);
+        self.shared
+            .resident
+            .store(book.resident_bytes as u64, Relaxed);
     }
 }
 
 fn fetch_loop(s: &Shared) {
     loop {
-        let id = {
+        let (id, levels, ahead) = {
             let mut q = lock(&s.queue);
             loop {
                 if q.shutdown {
@@ -246,14 +303,31 @@ fn fetch_loop(s: &Shared) {
                 }
                 if let Some(id) = q.ids.pop() {
                     q.in_flight += 1;
-                    break id;
+                    break (id, s.read_ahead, false);
+                }
+                let room = s.resident.load(Relaxed) < s.budget / 2;
+                if let Some((id, levels)) = q.ahead.pop().filter(|_| room) {
+                    q.in_flight += 1;
+                    break (id, levels, true);
                 }
                 q = s.work.wait(q).unwrap_or_else(PoisonError::into_inner);
             }
         };
         let result = Data::load(&s.scene, id);
-        lock(&s.done).push((id, result));
-        lock(&s.queue).in_flight -= 1;
+        let children: Vec<u32> = match &result {
+            Ok(Data::Treelets(d)) if levels > 0 => d.lods.iter().map(|l| l.child_block).collect(),
+            _ => Vec::new(),
+        };
+        lock(&s.done).push((id, result, ahead));
+        let mut q = lock(&s.queue);
+        q.in_flight -= 1;
+        for c in children {
+            if q.seen_ahead.insert(c) {
+                q.ahead.push((c, levels - 1));
+            }
+        }
+        drop(q);
+        s.work.notify_all();
         s.finished.notify_all();
     }
 }
@@ -311,6 +385,13 @@ impl BlockCache for AsyncCache {
             for id in q.ids.drain(..) {
                 book.fetching.remove(&id);
             }
+            // Reading ahead follows the blocks rays asked for; a new frame starts it afresh,
+            // skipping what is resident or asked for.
+            q.ahead.clear();
+            q.seen_ahead.clear();
+            let table = self.table.read().unwrap_or_else(PoisonError::into_inner);
+            q.seen_ahead.extend(table.keys().copied());
+            q.seen_ahead.extend(ranked.iter().map(|&(_, id)| id));
             for &(_, id) in &ranked {
                 book.fetching.insert(id);
             }
@@ -336,6 +417,7 @@ impl BlockCache for AsyncCache {
             blocks_loaded: b.loaded,
             blocks_evicted: b.evicted,
             blocks_requested: b.requested,
+            blocks_looked_ahead: b.looked_ahead,
             blocks_pending: pending as u64,
             blocks_dropped: b.dropped,
             blocks_wanted_last_frame: b.wanted_last_frame,

@@ -171,6 +171,7 @@ impl BlockCache for BlockingCache {
             blocks_loaded: t.loaded,
             blocks_evicted: t.evicted,
             blocks_requested: 0,
+            blocks_looked_ahead: 0,
             blocks_pending: 0,
             blocks_dropped: 0,
             blocks_wanted_last_frame: 0,

@@ -43,6 +43,9 @@ pub struct CacheStats {
     pub blocks_evicted: u64,
     /// Asynchronous cache: distinct blocks handed to the fetchers, over all frames.
     pub blocks_requested: u64,
+    /// Asynchronous cache: of those, look-ahead requests (child blocks of the treelet blocks a
+    /// frame used, fetched into free room at the lowest priority).
+    pub blocks_looked_ahead: u64,
     /// Asynchronous cache: blocks queued or being fetched now.
     pub blocks_pending: u64,
     /// Asynchronous cache: blocks fetched but not kept, because every resident block was in
