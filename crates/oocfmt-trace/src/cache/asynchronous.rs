@@ -234,35 +234,25 @@ impl AsyncCache {
                     continue;
                 }
             };
+            // Read ahead and asked for at once, or asked for again while it was in flight: the
+            // same block, kept once.
+            if table.contains_key(&id) {
+                continue;
+            }
             let bytes = data.bytes();
-            if ahead {
-                if table.contains_key(&id) || book.resident_bytes + bytes > self.budget {
-                    continue;
-                }
-                book.looked_ahead += 1;
-                book.resident_bytes += bytes;
-                book.loaded += 1;
-                table.insert(
-                    id,
-                    Arc::new(Resident {
-                        data,
-                        bytes,
-                        // Unused so far: the first to go when room is needed.
-                        last_used: AtomicU64::new(0),
-                    }),
-                );
-                continue;
-            }
             if bytes > self.budget {
-                book.missing.entry(id).or_insert_with(|| {
-                    format!(
-                        "the decoded block needs {bytes} bytes, over the cache budget of {}",
-                        self.budget
-                    )
-                });
+                if !ahead {
+                    book.missing.entry(id).or_insert_with(|| {
+                        format!(
+                            "the decoded block needs {bytes} bytes, over the cache budget of {}",
+                            self.budget
+                        )
+                    });
+                }
                 continue;
             }
-            while book.resident_bytes + bytes > self.budget {
+            // Room is made for blocks rays asked for; a block read ahead takes free room only.
+            while !ahead && book.resident_bytes + bytes > self.budget {
                 let Some((_, victim)) = victims.next() else {
                     break;
                 };
@@ -272,17 +262,23 @@ impl AsyncCache {
                 }
             }
             if book.resident_bytes + bytes > self.budget {
-                book.dropped += 1;
+                if !ahead {
+                    book.dropped += 1;
+                }
                 continue;
             }
             book.resident_bytes += bytes;
             book.loaded += 1;
+            if ahead {
+                book.looked_ahead += 1;
+            }
             table.insert(
                 id,
                 Arc::new(Resident {
                     data,
                     bytes,
-                    last_used: AtomicU64::new(frame),
+                    // A block read ahead is unused so far: the first to go when room is needed.
+                    last_used: AtomicU64::new(if ahead { 0 } else { frame }),
                 }),
             );
         }
