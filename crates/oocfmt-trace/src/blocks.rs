@@ -4,7 +4,7 @@
 //! block that decoded.
 
 use oocfmt::records::triangle::oct_decode;
-use oocfmt::records::{Node, TreeletBlock, TriangleBlock, Voxel, NO_PROXY};
+use oocfmt::records::{lod_child_treelets, Node, TreeletBlock, TriangleBlock, Voxel, NO_PROXY};
 use oocfmt::{Block, Code, Error, Result};
 
 /// No child in [`DNode::Inner`].
@@ -111,11 +111,13 @@ impl TreeletData {
                     voxel_offset,
                     proxy,
                 } => {
-                    let right_index = child_treelet + u32::from(left_present);
+                    let [left, right] =
+                        lod_child_treelets(child_treelet, [left_present, right_present])
+                            .map(|t| t.unwrap_or(NONE));
                     lods.push(Lod {
                         radius,
-                        left: if left_present { child_treelet } else { NONE },
-                        right: if right_present { right_index } else { NONE },
+                        left,
+                        right,
                         child_block,
                         voxel: tb.voxel(voxel_offset).map_err(|e| e.in_block(block.id))?,
                         proxy: (proxy != NO_PROXY).then_some(proxy),

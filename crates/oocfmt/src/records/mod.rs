@@ -8,8 +8,8 @@ pub mod treelet;
 pub mod triangle;
 
 pub use node::{
-    Node, MAX_CHILD_TREELET, MAX_CHILD_UNITS, MAX_LEAF_TRIANGLES, MAX_TREE_DEPTH, NODE_BASIC_LEN,
-    NODE_LEAF_LEN, NODE_LOD_LEN, NO_PROXY,
+    lod_child_treelets, Node, MAX_CHILD_TREELET, MAX_CHILD_UNITS, MAX_LEAF_TRIANGLES,
+    MAX_TREE_DEPTH, NODE_BASIC_LEN, NODE_LEAF_LEN, NODE_LOD_LEN, NO_PROXY,
 };
 pub use proxy::{ProxyRecord, PROXY_DIRECTIONS, PROXY_LEN};
 pub use sample::{Sample, Voxel};

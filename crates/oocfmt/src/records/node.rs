@@ -55,6 +55,14 @@ pub enum Node {
     },
 }
 
+/// The treelets of a LOD node's children in its child block, left and right (spec §6.3): the
+/// stored index names the first present child's treelet, and with two children the right one
+/// is the next. `None` for an empty child.
+pub fn lod_child_treelets(first: u32, present: [bool; 2]) -> [Option<u32>; 2] {
+    let right = first.saturating_add(u32::from(present[0]));
+    [present[0].then_some(first), present[1].then_some(right)]
+}
+
 impl Node {
     pub fn byte_len(&self) -> usize {
         match self {

@@ -9,7 +9,9 @@ use crate::error::{Code, Result};
 use crate::header::{COMPAT_LOD_VOXELS, COMPAT_PROXIES};
 use crate::metadata::{Counts, TreeletRef};
 use crate::reader::{read_block_data, ReadOptions};
-use crate::records::{Node, TreeletBlock, MAX_TREE_DEPTH as MAX_DEPTH, NO_PROXY};
+use crate::records::{
+    lod_child_treelets, Node, TreeletBlock, MAX_TREE_DEPTH as MAX_DEPTH, NO_PROXY,
+};
 use crate::summary::BlockFacts;
 
 /// What a treelet root inherits from its parent LOD node.
@@ -344,11 +346,9 @@ impl Walk<'_> {
             );
             return;
         }
-        let mut index = first;
-        for (present, cell) in children {
-            if !present {
-                continue;
-            }
+        let present = children.map(|(p, _)| p);
+        for (index, (_, cell)) in lod_child_treelets(first, present).into_iter().zip(children) {
+            let Some(index) = index else { continue };
             if index >= ce.item_count {
                 v.note_code(
                     Code::TreeReference,
@@ -375,7 +375,6 @@ impl Walk<'_> {
             {
                 v.note_code(Code::TreeShared, format!("LOD node at {pos}: treelet {index} of block {child_block} is reached twice"), Some(id));
             }
-            index += 1;
         }
     }
 
