@@ -145,20 +145,7 @@ impl Builder<'_> {
                 if let Some(d) = self.top_lod.get(&k) {
                     self.lod.insert(id, *d);
                 }
-                let mut kids = [None, None];
-                for (slot, c) in kids.iter_mut().zip(children) {
-                    if let Some(c) = c {
-                        *slot = Some(self.top_node(c)?);
-                    }
-                }
-                self.set(
-                    id,
-                    KdNode::Inner {
-                        axis,
-                        split,
-                        children: kids,
-                    },
-                );
+                self.inner(id, axis, split, children, &mut |b, c| b.top_node(c))?;
                 Ok(id)
             }
             Some(&TopNode::Chunk(c)) => self.upper(c, 0),
@@ -166,10 +153,30 @@ impl Builder<'_> {
         }
     }
 
-    fn set(&mut self, id: NodeId, node: KdNode) {
-        if let Some(slot) = self.nodes.get_mut(id.index()) {
-            *slot = node;
+    /// Makes node `id` an inner node whose children `add` places (`children` names them in
+    /// whatever numbering `add` reads).
+    fn inner(
+        &mut self,
+        id: NodeId,
+        axis: u8,
+        split: f32,
+        children: [Option<usize>; 2],
+        add: &mut dyn FnMut(&mut Self, usize) -> Result<NodeId, LayoutError>,
+    ) -> Result<(), LayoutError> {
+        let mut kids = [None, None];
+        for (slot, c) in kids.iter_mut().zip(children) {
+            if let Some(c) = c {
+                *slot = Some(add(self, c)?);
+            }
         }
+        if let Some(slot) = self.nodes.get_mut(id.index()) {
+            *slot = KdNode::Inner {
+                axis,
+                split,
+                children: kids,
+            };
+        }
+        Ok(())
     }
 
     fn upper(&mut self, chunk: usize, k: usize) -> Result<NodeId, LayoutError> {
@@ -194,20 +201,7 @@ impl Builder<'_> {
                 split,
                 children,
             } => {
-                let mut kids = [None, None];
-                for (slot, c) in kids.iter_mut().zip(children) {
-                    if let Some(c) = c {
-                        *slot = Some(self.upper(chunk, c)?);
-                    }
-                }
-                self.set(
-                    id,
-                    KdNode::Inner {
-                        axis,
-                        split,
-                        children: kids,
-                    },
-                );
+                self.inner(id, axis, split, children, &mut |b, c| b.upper(chunk, c))?;
             }
             UpperNode::Frontier {
                 axis,
@@ -217,20 +211,10 @@ impl Builder<'_> {
                 child_treelet,
                 lod,
             } => {
-                let mut kids = [None, None];
-                for (slot, p) in kids.iter_mut().zip(present) {
-                    if p {
-                        *slot = Some(self.push(placeholder())?);
-                    }
-                }
-                self.set(
-                    id,
-                    KdNode::Inner {
-                        axis,
-                        split,
-                        children: kids,
-                    },
-                );
+                // Placeholders only carry which children exist: the children live in the
+                // chunk's own blocks.
+                let children = present.map(|p| p.then_some(0));
+                self.inner(id, axis, split, children, &mut |b, _| b.push(placeholder()))?;
                 self.lod.insert(id, lod);
                 self.frontier
                     .insert(id, (chunk, child_block, child_treelet));
