@@ -15,7 +15,7 @@ use crate::traverse::{Memo, Stack, Surface, Tracer};
 const TILE: u32 = 16;
 
 /// A finished tile: its index, colours, depths and ray endings.
-type TileOut = (u32, Vec<[u8; 3]>, Vec<f32>, Endings);
+type TileOut = (u32, Vec<[u8; 3]>, Vec<f32>, Endings, u64);
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderOptions {
@@ -74,6 +74,9 @@ pub struct FrameStats {
     pub rays: u64,
     pub rays_per_second: f64,
     pub primary: Endings,
+    /// Kd-tree nodes (inner, LOD, leaf) the frame's rays visited.
+    pub nodes_visited: u64,
+    pub nodes_per_ray: f64,
     pub cache: CacheStats,
 }
 
@@ -133,7 +136,7 @@ pub fn render(
                     }
                 }
                 memo.flush(cache);
-                (tile, rgb, depth, endings)
+                (tile, rgb, depth, endings, memo.take_visited())
             },
         )
         .collect();
@@ -145,8 +148,10 @@ pub fn render(
         depth: vec![f32::INFINITY; (w as usize) * (h as usize)],
     };
     let mut primary = Endings::default();
-    for (tile, rgb, depth, endings) in done {
+    let mut nodes_visited = 0;
+    for (tile, rgb, depth, endings, visited) in done {
         primary.add(&endings);
+        nodes_visited += visited;
         let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);
         let tw = ((x0 + TILE).min(w) - x0) as usize;
         for (k, (c, d)) in rgb.iter().zip(&depth).enumerate() {
@@ -171,6 +176,8 @@ pub fn render(
         rays,
         rays_per_second: rays as f64 / seconds.max(1e-9),
         primary,
+        nodes_visited,
+        nodes_per_ray: nodes_visited as f64 / rays.max(1) as f64,
         cache: cache.stats(),
     };
     Ok((image, stats))

@@ -57,6 +57,9 @@ pub struct Memo {
     triangles: HashMap<u32, Option<Arc<TriangleData>>>,
     wanted: HashMap<u32, f32>,
     flushed: Vec<(u32, f32)>,
+    /// Nodes the rays traced with this memo visited (inner, LOD and leaf), since the last
+    /// [`Memo::take_visited`].
+    visited: u64,
 }
 
 impl Memo {
@@ -64,6 +67,11 @@ impl Memo {
         self.treelets.clear();
         self.triangles.clear();
         self.wanted.clear();
+    }
+
+    /// Nodes visited since the last call, and a fresh count.
+    pub fn take_visited(&mut self) -> u64 {
+        std::mem::take(&mut self.visited)
     }
 
     /// Hands the blocks wanted since the last flush to the cache as requests.
@@ -171,12 +179,25 @@ impl<'a> Tracer<'a> {
 
     /// Where the ray first meets the scene, or None.
     pub fn trace(&self, ray: &Ray, memo: &mut Memo, stack: &mut Stack) -> Option<Hit> {
+        self.trace_to(ray, f32::INFINITY, memo, stack)
+    }
+
+    /// Where the ray first meets the scene closer than `t_max` (exclusive), or None: a shadow
+    /// ray towards a light at distance `t_max` is occluded when this returns a hit.
+    pub fn trace_to(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        memo: &mut Memo,
+        stack: &mut Stack,
+    ) -> Option<Hit> {
         let stack = &mut stack.0;
         stack.clear();
         let eps = self
             .eps
             .max(ray.org.iter().fold(0f32, |a, &c| a.max(c.abs())) * 4e-6);
-        let (t0, t1, axis) = ray_box(ray, self.lo, self.hi, eps, 0.0, f32::INFINITY)?;
+        let t_max = if t_max.is_nan() { f32::INFINITY } else { t_max };
+        let (t0, t1, axis) = ray_box(ray, self.lo, self.hi, eps, 0.0, t_max)?;
         let (root_block, root_treelet) = self.root?;
         let mut cur_id = root_block;
         let Some(root_data) = memo.treelets(self.cache, root_block) else {
@@ -194,7 +215,7 @@ impl<'a> Tracer<'a> {
             last: None,
         });
         let mut best: Option<Hit> = None;
-        let mut best_t = f32::INFINITY;
+        let mut best_t = t_max;
         while let Some(e) = stack.pop() {
             if e.t0 > best_t + eps {
                 continue;
@@ -216,6 +237,7 @@ impl<'a> Tracer<'a> {
                 ..
             } = e;
             while let Some(&n) = cur.nodes.get(node as usize) {
+                memo.visited += 1;
                 match n {
                     DNode::Inner {
                         axis: a,
