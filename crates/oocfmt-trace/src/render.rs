@@ -10,7 +10,7 @@ use crate::camera::Camera;
 use crate::error::TraceError;
 use crate::scene::Scene;
 use crate::shade::{encode_srgb, shade};
-use crate::traverse::{Memo, Stack, Surface, Tracer};
+use crate::traverse::{Memo, Surface, Tracer};
 
 const TILE: u32 = 16;
 
@@ -105,8 +105,8 @@ pub fn render(
     let done: Vec<TileOut> = (0..tiles)
         .into_par_iter()
         .map_init(
-            || (Memo::default(), Stack::default()),
-            |(memo, stack), tile| {
+            || Memo::new(scene),
+            |memo, tile| {
                 memo.clear();
                 let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);
                 let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
@@ -117,7 +117,7 @@ pub fn render(
                 for y in y0..y1 {
                     for x in x0..x1 {
                         let ray = frame.ray(x, y);
-                        match tracer.trace(&ray, memo, stack) {
+                        match tracer.trace(&ray, memo) {
                             Some(hit) => {
                                 match hit.surface {
                                     Surface::Triangle { .. } => endings.triangle += 1,

@@ -57,9 +57,37 @@ pub fn shade(hit: &Hit, ray: &Ray, materials: &[Material]) -> [f32; 3] {
     albedo.map(|c| c.clamp(0.0, 1.0) * light)
 }
 
-/// Linear to sRGB-encoded 8 bits.
+/// Linear to sRGB-encoded 8 bits: the sRGB curve rounded to the nearest level, looked up
+/// among the 255 linear values where the level changes (found once, by bisection over the
+/// exact curve), so no `powf` per pixel and the same bytes as the formula.
 pub fn encode_srgb(c: f32) -> u8 {
-    let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
+    if c.is_nan() {
+        return 0;
+    }
+    let steps = SRGB_STEPS.get_or_init(|| {
+        (1..=255u32)
+            .map(|level| {
+                // The smallest non-negative f32 whose exact encoding reaches `level`.
+                let (mut lo, mut hi) = (0u32, 1f32.to_bits());
+                while lo < hi {
+                    let mid = lo + (hi - lo) / 2;
+                    if u32::from(srgb_exact(f32::from_bits(mid))) >= level {
+                        hi = mid;
+                    } else {
+                        lo = mid + 1;
+                    }
+                }
+                f32::from_bits(lo)
+            })
+            .collect()
+    });
+    steps.partition_point(|&s| s <= c) as u8
+}
+
+static SRGB_STEPS: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+
+fn srgb_exact(c: f32) -> u8 {
+    let c = c.clamp(0.0, 1.0);
     let s = if c <= 0.003_130_8 {
         12.92 * c
     } else {
@@ -94,5 +122,16 @@ mod tests {
         assert_eq!(encode_srgb(1.0), 255);
         assert_eq!(encode_srgb(f32::NAN), 0);
         assert_eq!(encode_srgb(0.18), 118);
+        assert_eq!(encode_srgb(-1.0), 0);
+        assert_eq!(encode_srgb(f32::INFINITY), 255);
+    }
+
+    #[test]
+    fn the_lookup_equals_the_formula() {
+        let mut c = 0f32;
+        while c < 1.01 {
+            assert_eq!(encode_srgb(c), srgb_exact(c), "at {c}");
+            c = if c < 1e-3 { c + 1e-7 } else { c * 1.0001 };
+        }
     }
 }

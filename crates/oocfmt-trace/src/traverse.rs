@@ -19,12 +19,15 @@
 //!   the split plane: it visits the side its origin lies on, both sides when the origin lies on
 //!   the plane. No 0 × inf product is formed.
 
-use rustc_hash::FxHashMap as HashMap;
+use std::cell::{Cell, OnceCell, RefCell};
 use std::sync::Arc;
+
+use arrayvec::ArrayVec;
+use rustc_hash::FxHashMap as HashMap;
 
 use oocfmt::records::{Sample, Voxel, MAX_TREE_DEPTH, PROXY_DIRECTIONS};
 
-use crate::blocks::{DNode, Lod, TreeletData, TriangleData, NONE};
+use crate::blocks::{DNode, TreeletData, TriangleData, NONE};
 use crate::cache::BlockCache;
 use crate::intersect::{major_axis, ray_box, Ray};
 use crate::scene::Scene;
@@ -48,97 +51,151 @@ pub struct Hit {
     pub surface: Surface,
 }
 
+/// A block as one group of rays (a tile) saw it.
+enum Slot {
+    Treelets(Arc<TreeletData>),
+    Triangles(Arc<TriangleData>),
+    /// Not available to this tile: not loaded yet, missing for good, or not of the kind asked.
+    Missing,
+}
+
 /// Blocks one group of rays (a tile) has looked up: the shared cache is asked once per block
-/// per tile rather than once per ray. The blocks the rays wanted and did not get are gathered
+/// per tile rather than once per ray, and the rays borrow the blocks from here, so the hot loop
+/// never touches a reference count. Slots are indexed by block id (one per directory entry), so
+/// a lookup is an index, not a hash. The blocks the rays wanted and did not get are gathered
 /// here too, with their priorities, and handed to the cache once per tile by [`Memo::flush`].
-#[derive(Default)]
 pub struct Memo {
-    treelets: HashMap<u32, Option<Arc<TreeletData>>>,
-    triangles: HashMap<u32, Option<Arc<TriangleData>>>,
-    wanted: HashMap<u32, f32>,
+    slots: Vec<OnceCell<Slot>>,
+    /// Slots filled since the last [`Memo::clear`].
+    touched: RefCell<Vec<u32>>,
+    wanted: RefCell<HashMap<u32, f32>>,
     flushed: Vec<(u32, f32)>,
     /// Nodes the rays traced with this memo visited (inner, LOD and leaf), since the last
     /// [`Memo::take_visited`].
-    visited: u64,
+    visited: Cell<u64>,
 }
 
 impl Memo {
+    /// A memo for the blocks of `scene`.
+    pub fn new(scene: &Scene) -> Memo {
+        Memo {
+            slots: (0..scene.block_count()).map(|_| OnceCell::new()).collect(),
+            touched: RefCell::default(),
+            wanted: RefCell::default(),
+            flushed: Vec::new(),
+            visited: Cell::new(0),
+        }
+    }
+
+    /// Forgets the blocks looked up so far (the next tile asks the cache again) and the
+    /// unflushed requests.
     pub fn clear(&mut self) {
-        self.treelets.clear();
-        self.triangles.clear();
-        self.wanted.clear();
+        for id in self.touched.get_mut().drain(..) {
+            if let Some(slot) = self.slots.get_mut(id as usize) {
+                slot.take();
+            }
+        }
+        self.wanted.get_mut().clear();
     }
 
     /// Nodes visited since the last call, and a fresh count.
     pub fn take_visited(&mut self) -> u64 {
-        std::mem::take(&mut self.visited)
+        self.visited.replace(0)
     }
 
     /// Hands the blocks wanted since the last flush to the cache as requests.
     pub fn flush(&mut self, cache: &dyn BlockCache) {
-        if self.wanted.is_empty() {
+        let wanted = self.wanted.get_mut();
+        if wanted.is_empty() {
             return;
         }
         self.flushed.clear();
-        self.flushed.extend(self.wanted.drain());
+        self.flushed.extend(wanted.drain());
         cache.request(&self.flushed);
     }
 
     /// One ray wanted block `id` and did not get it. The priority of a request is the sum over
     /// its rays of 1 plus the angular size of the region (radius over distance): many rays,
     /// and big, near regions first.
-    fn want(&mut self, id: u32, radius: f32, t: f32) {
+    fn want(&self, id: u32, radius: f32, t: f32) {
         let size = if t > 0.0 && radius.is_finite() {
             (radius / t).min(1.0)
         } else {
             1.0
         };
-        *self.wanted.entry(id).or_insert(0.0) += 1.0 + size;
+        *self.wanted.borrow_mut().entry(id).or_insert(0.0) += 1.0 + size;
     }
 
-    fn treelets(&mut self, cache: &dyn BlockCache, id: u32) -> Option<&Arc<TreeletData>> {
-        self.treelets
-            .entry(id)
-            .or_insert_with(|| cache.treelets(id))
-            .as_ref()
+    fn slot(&self, id: u32, load: impl FnOnce() -> Slot) -> Option<&Slot> {
+        let cell = self.slots.get(id as usize)?;
+        Some(cell.get_or_init(|| {
+            self.touched.borrow_mut().push(id);
+            load()
+        }))
     }
 
-    fn triangles(&mut self, cache: &dyn BlockCache, id: u32) -> Option<&Arc<TriangleData>> {
-        self.triangles
-            .entry(id)
-            .or_insert_with(|| cache.triangles(id))
-            .as_ref()
+    fn treelets(&self, cache: &dyn BlockCache, id: u32) -> Option<&TreeletData> {
+        let slot = self.slot(id, || {
+            cache.treelets(id).map_or(Slot::Missing, Slot::Treelets)
+        });
+        match slot? {
+            Slot::Treelets(d) => Some(d),
+            _ => None,
+        }
+    }
+
+    fn triangles(&self, cache: &dyn BlockCache, id: u32) -> Option<&Arc<TriangleData>> {
+        let slot = self.slot(id, || {
+            cache.triangles(id).map_or(Slot::Missing, Slot::Triangles)
+        });
+        match slot? {
+            Slot::Triangles(d) => Some(d),
+            _ => None,
+        }
     }
 }
 
+/// The last LOD node met on a ray's path: its voxel ends the ray where the data below is
+/// missing.
 #[derive(Clone, Copy)]
-struct LastVoxel {
-    voxel: Voxel,
+struct LastVoxel<'m> {
+    data: &'m TreeletData,
+    lod: u32,
     radius: f32,
     t: f32,
     axis: u8,
 }
 
-/// A subtree waiting on the stack: its node, the ray's interval in its cell, the axis of the
-/// face the ray entered the cell through (3: none, the ray starts inside) and the last voxel
-/// above it.
+impl LastVoxel<'_> {
+    fn sample(&self, ray: &Ray) -> Option<Sample> {
+        let look = self.data.looks.get(self.lod as usize)?;
+        Some(voxel_sample(&look.voxel, self.axis, ray))
+    }
+}
+
+/// A subtree waiting on the stack: its treelet block and node, the ray's interval in its cell,
+/// the axis of the face the ray entered the cell through (3: none, the ray starts inside) and
+/// the last voxel above it.
 #[derive(Clone, Copy)]
-pub struct Entry {
-    block: u32,
+struct Entry<'m> {
+    data: &'m TreeletData,
     node: u32,
     t0: f32,
     t1: f32,
     axis: u8,
-    last: Option<LastVoxel>,
+    last: Option<LastVoxel<'m>>,
 }
 
-/// Reusable per-thread traversal state.
-pub struct Stack(Vec<Entry>);
-
-impl Default for Stack {
-    fn default() -> Self {
-        Stack(Vec::with_capacity(MAX_TREE_DEPTH as usize))
-    }
+/// The nearest surface found so far, borrowed from the memo until the ray is done.
+enum Best<'m> {
+    None,
+    Triangle {
+        data: &'m Arc<TriangleData>,
+        triangle: u32,
+        bary: [f32; 3],
+    },
+    Voxel(Sample),
+    Proxy(Sample),
 }
 
 pub struct Tracer<'a> {
@@ -155,6 +212,25 @@ pub struct Tracer<'a> {
 
 /// One side of a split: left or right child, interval, entry axis.
 type Side = (bool, f32, f32, u8);
+
+/// A child to visit: node index, interval, entry axis.
+type Visit = (u32, f32, f32, u8);
+
+/// The children to visit, nearest first, given the sides a split yields and which child node
+/// (if any) each side names.
+fn ordered(
+    (near, far): (Option<Side>, Option<Side>),
+    child: impl Fn(bool) -> Option<u32>,
+) -> Option<(Visit, Option<Visit>)> {
+    let pick = |s: Option<Side>| {
+        let (is_left, t0, t1, axis) = s?;
+        Some((child(is_left)?, t0, t1, axis))
+    };
+    match (pick(near), pick(far)) {
+        (Some(n), f) => Some((n, f)),
+        (None, f) => f.map(|f| (f, None)),
+    }
+}
 
 impl<'a> Tracer<'a> {
     /// `lod_c` = poe · (world size of a pixel per unit distance).
@@ -178,66 +254,49 @@ impl<'a> Tracer<'a> {
     }
 
     /// Where the ray first meets the scene, or None.
-    pub fn trace(&self, ray: &Ray, memo: &mut Memo, stack: &mut Stack) -> Option<Hit> {
-        self.trace_to(ray, f32::INFINITY, memo, stack)
+    pub fn trace(&self, ray: &Ray, memo: &Memo) -> Option<Hit> {
+        self.trace_to(ray, f32::INFINITY, memo)
     }
 
     /// Where the ray first meets the scene closer than `t_max` (exclusive), or None: a shadow
     /// ray towards a light at distance `t_max` is occluded when this returns a hit.
-    pub fn trace_to(
-        &self,
-        ray: &Ray,
-        t_max: f32,
-        memo: &mut Memo,
-        stack: &mut Stack,
-    ) -> Option<Hit> {
-        let stack = &mut stack.0;
-        stack.clear();
+    pub fn trace_to(&self, ray: &Ray, t_max: f32, memo: &Memo) -> Option<Hit> {
+        let mut stack = ArrayVec::<Entry<'_>, { MAX_TREE_DEPTH as usize }>::new();
         let eps = self
             .eps
             .max(ray.org.iter().fold(0f32, |a, &c| a.max(c.abs())) * 4e-6);
         let t_max = if t_max.is_nan() { f32::INFINITY } else { t_max };
         let (t0, t1, axis) = ray_box(ray, self.lo, self.hi, eps, 0.0, t_max)?;
         let (root_block, root_treelet) = self.root?;
-        let mut cur_id = root_block;
         let Some(root_data) = memo.treelets(self.cache, root_block) else {
             memo.want(root_block, f32::INFINITY, t0);
             return None;
         };
-        let mut cur = Arc::clone(root_data);
-        let root = *cur.roots.get(root_treelet as usize)?;
         stack.push(Entry {
-            block: root_block,
-            node: root,
+            data: root_data,
+            node: *root_data.roots.get(root_treelet as usize)?,
             t0,
             t1,
             axis: axis.map_or(3, |a| a as u8),
             last: None,
         });
-        let mut best: Option<Hit> = None;
+        let mut best = Best::None;
         let mut best_t = t_max;
+        let mut visited = 0u64;
         while let Some(e) = stack.pop() {
             if e.t0 > best_t + eps {
                 continue;
             }
-            if e.block != cur_id {
-                let Some(d) = memo.treelets(self.cache, e.block) else {
-                    memo.want(e.block, f32::INFINITY, e.t0);
-                    continue;
-                };
-                cur = Arc::clone(d);
-                cur_id = e.block;
-            }
             let Entry {
+                mut data,
                 mut node,
                 mut t0,
                 mut t1,
                 mut axis,
                 mut last,
-                ..
             } = e;
-            while let Some(&n) = cur.nodes.get(node as usize) {
-                memo.visited += 1;
+            while let Some(&n) = data.nodes.get(node as usize) {
+                visited += 1;
                 match n {
                     DNode::Inner {
                         axis: a,
@@ -245,108 +304,91 @@ impl<'a> Tracer<'a> {
                         left,
                         right,
                     } => {
-                        let (near, far) = self.split(ray, a, split, t0, t1, axis, eps);
-                        let pick = |s: Option<Side>| {
-                            let (is_left, a0, a1, ax) = s?;
-                            let child = if is_left { left } else { right };
-                            (child != NONE).then_some((child, a0, a1, ax))
+                        let sides = split_sides(ray, a, split, t0, t1, axis, eps);
+                        let child = |is_left| {
+                            let c = if is_left { left } else { right };
+                            (c != NONE).then_some(c)
                         };
-                        let (near, far) = match (pick(near), pick(far)) {
-                            (None, f) => (f, None),
-                            n => n,
+                        let Some((near, far)) = ordered(sides, child) else {
+                            break;
                         };
-                        let Some((c, a0, a1, ax)) = near else { break };
                         if let Some((fc, f0, f1, fax)) = far {
-                            if stack.len() < stack.capacity() {
-                                stack.push(Entry {
-                                    block: cur_id,
-                                    node: fc,
-                                    t0: f0,
-                                    t1: f1,
-                                    axis: fax,
-                                    last,
-                                });
-                            }
+                            let _ = stack.try_push(Entry {
+                                data,
+                                node: fc,
+                                t0: f0,
+                                t1: f1,
+                                axis: fax,
+                                last,
+                            });
                         }
-                        (node, t0, t1, axis) = (c, a0, a1, ax);
+                        (node, t0, t1, axis) = near;
                     }
                     DNode::Lod {
                         axis: a,
                         split,
                         lod,
                     } => {
-                        let Some(&Lod {
-                            radius,
-                            left,
-                            right,
-                            child_block,
-                            voxel,
-                            proxy,
-                        }) = cur.lods.get(lod as usize)
-                        else {
+                        let Some(l) = data.lods.get(lod as usize) else {
                             break;
                         };
                         last = Some(LastVoxel {
-                            voxel,
-                            radius,
+                            data,
+                            lod,
+                            radius: l.radius,
                             t: t0,
                             axis,
                         });
-                        if self.lod_c > 0.0 && radius <= t0 * self.lod_c {
-                            offer(
-                                &mut best,
-                                &mut best_t,
-                                t0,
-                                Surface::Voxel(voxel_sample(&voxel, axis, ray)),
-                            );
-                            break;
-                        }
-                        let Some(child) = memo.treelets(self.cache, child_block) else {
-                            memo.want(child_block, radius, t0);
-                            match proxy.and_then(|p| self.proxies.get(p as usize)) {
-                                Some(p) => {
-                                    let s = proxy_sample(&p.samples, ray);
-                                    if !s.is_empty() {
-                                        offer(&mut best, &mut best_t, t0, Surface::Proxy(s));
-                                    }
+                        let stop = self.lod_c > 0.0 && l.radius <= t0 * self.lod_c;
+                        let child = if stop {
+                            None
+                        } else {
+                            memo.treelets(self.cache, l.child_block)
+                        };
+                        let Some(child) = child else {
+                            let Some(look) = data.looks.get(lod as usize) else {
+                                break;
+                            };
+                            let shown = if stop {
+                                Some(Best::Voxel(voxel_sample(&look.voxel, axis, ray)))
+                            } else {
+                                memo.want(l.child_block, l.radius, t0);
+                                // A proxy that sees nothing in the ray's direction skips the
+                                // subtree.
+                                match look.proxy.and_then(|p| self.proxies.get(p as usize)) {
+                                    Some(p) => Some(proxy_sample(&p.samples, ray))
+                                        .filter(|s| !s.is_empty())
+                                        .map(Best::Proxy),
+                                    None => Some(Best::Voxel(voxel_sample(&look.voxel, axis, ray))),
                                 }
-                                None => offer(
-                                    &mut best,
-                                    &mut best_t,
-                                    t0,
-                                    Surface::Voxel(voxel_sample(&voxel, axis, ray)),
-                                ),
+                            };
+                            if let Some(s) = shown.filter(|_| t0 < best_t) {
+                                best_t = t0;
+                                best = s;
                             }
                             break;
                         };
-                        let child = Arc::clone(child);
-                        let (near, far) = self.split(ray, a, split, t0, t1, axis, eps);
-                        let pick = |s: Option<Side>| {
-                            let (is_left, a0, a1, ax) = s?;
-                            let t = if is_left { left } else { right };
+                        let sides = split_sides(ray, a, split, t0, t1, axis, eps);
+                        let root = |is_left| {
+                            let t = if is_left { l.left } else { l.right };
                             let root = *child.roots.get(t as usize)?;
-                            (t != NONE && root != NONE).then_some((root, a0, a1, ax))
+                            (t != NONE && root != NONE).then_some(root)
                         };
-                        let (near, far) = match (pick(near), pick(far)) {
-                            (None, f) => (f, None),
-                            n => n,
+                        let Some((near, far)) = ordered(sides, root) else {
+                            break;
                         };
-                        let Some((c, a0, a1, ax)) = near else { break };
                         if let Some((fc, f0, f1, fax)) = far {
-                            if stack.len() < stack.capacity() {
-                                stack.push(Entry {
-                                    block: child_block,
-                                    node: fc,
-                                    t0: f0,
-                                    t1: f1,
-                                    axis: fax,
-                                    last,
-                                });
-                            }
+                            let _ = stack.try_push(Entry {
+                                data: child,
+                                node: fc,
+                                t0: f0,
+                                t1: f1,
+                                axis: fax,
+                                last,
+                            });
                         }
-                        cur = child;
-                        cur_id = child_block;
-                        (node, t0, t1, axis) = (c, a0, a1, ax);
+                        data = child;
+                        (node, t0, t1, axis) = near;
                     }
                     DNode::Leaf {
                         first,
@@ -364,82 +406,85 @@ impl<'a> Tracer<'a> {
                                     if let Some(h) = ray.triangle(a, b, c) {
                                         if h.t < best_t {
                                             best_t = h.t;
-                                            best = Some(Hit {
-                                                t: h.t,
-                                                surface: Surface::Triangle {
-                                                    data: Arc::clone(td),
-                                                    triangle: u32::from(ti),
-                                                    bary: h.bary,
-                                                },
-                                            });
+                                            best = Best::Triangle {
+                                                data: td,
+                                                triangle: u32::from(ti),
+                                                bary: h.bary,
+                                            };
                                         }
                                     }
                                 }
                             }
-                            None => {
-                                match last {
-                                    Some(lv) => memo.want(block, lv.radius, lv.t),
-                                    None => memo.want(block, f32::INFINITY, t0),
+                            None => match last {
+                                Some(lv) => {
+                                    memo.want(block, lv.radius, lv.t);
+                                    if let Some(s) = lv.sample(ray).filter(|_| lv.t < best_t) {
+                                        best_t = lv.t;
+                                        best = Best::Voxel(s);
+                                    }
                                 }
-                                if let Some(lv) = last {
-                                    let s = voxel_sample(&lv.voxel, lv.axis, ray);
-                                    offer(&mut best, &mut best_t, lv.t, Surface::Voxel(s));
-                                }
-                            }
+                                None => memo.want(block, f32::INFINITY, t0),
+                            },
                         }
                         break;
                     }
                 }
             }
         }
-        best
-    }
-
-    /// The children a ray in [t0, t1] visits at a split plane, nearest first, with their
-    /// intervals and entry axes. `entry` is the axis the ray entered the parent through.
-    #[allow(clippy::too_many_arguments)]
-    fn split(
-        &self,
-        ray: &Ray,
-        axis: u8,
-        split: f32,
-        t0: f32,
-        t1: f32,
-        entry: u8,
-        eps: f32,
-    ) -> (Option<Side>, Option<Side>) {
-        let k = usize::from(axis.min(2));
-        let (o, d, inv) = (ray.org[k], ray.dir[k], ray.inv[k]);
-        if d == 0.0 || !inv.is_finite() {
-            return if o < split - eps {
-                (Some((true, t0, t1, entry)), None)
-            } else if o > split + eps {
-                (Some((false, t0, t1, entry)), None)
-            } else {
-                (Some((true, t0, t1, entry)), Some((false, t0, t1, entry)))
-            };
-        }
-        // The side the ray is on before it crosses the plane depends on the direction's
-        // sign only: the crossing distance may be negative (the plane is behind) without
-        // changing which side comes first.
-        let left_before = d > 0.0;
-        let ts = (split - o) * inv;
-        let tol = eps * inv.abs();
-        let mid = ts.max(t0).min(t1);
-        let before = (ts + tol >= t0).then_some((left_before, t0, mid, entry));
-        let after_axis = if ts >= t0 { axis } else { entry };
-        let after = (ts - tol <= t1).then_some((!left_before, mid, t1, after_axis));
-        match before {
-            Some(b) => (Some(b), after),
-            None => (after, None),
-        }
+        memo.visited.set(memo.visited.get() + visited);
+        let surface = match best {
+            Best::None => return None,
+            Best::Triangle {
+                data,
+                triangle,
+                bary,
+            } => Surface::Triangle {
+                data: Arc::clone(data),
+                triangle,
+                bary,
+            },
+            Best::Voxel(s) => Surface::Voxel(s),
+            Best::Proxy(s) => Surface::Proxy(s),
+        };
+        Some(Hit { t: best_t, surface })
     }
 }
 
-fn offer(best: &mut Option<Hit>, best_t: &mut f32, t: f32, surface: Surface) {
-    if t < *best_t {
-        *best_t = t;
-        *best = Some(Hit { t, surface });
+/// The children a ray in [t0, t1] visits at a split plane, nearest first, with their
+/// intervals and entry axes. `entry` is the axis the ray entered the parent through.
+fn split_sides(
+    ray: &Ray,
+    axis: u8,
+    split: f32,
+    t0: f32,
+    t1: f32,
+    entry: u8,
+    eps: f32,
+) -> (Option<Side>, Option<Side>) {
+    let k = usize::from(axis.min(2));
+    let (o, d, inv) = (ray.org[k], ray.dir[k], ray.inv[k]);
+    if d == 0.0 || !inv.is_finite() {
+        return if o < split - eps {
+            (Some((true, t0, t1, entry)), None)
+        } else if o > split + eps {
+            (Some((false, t0, t1, entry)), None)
+        } else {
+            (Some((true, t0, t1, entry)), Some((false, t0, t1, entry)))
+        };
+    }
+    // The side the ray is on before it crosses the plane depends on the direction's sign
+    // only: the crossing distance may be negative (the plane is behind) without changing which
+    // side comes first.
+    let left_before = d > 0.0;
+    let ts = (split - o) * inv;
+    let tol = eps * inv.abs();
+    let mid = ts.max(t0).min(t1);
+    let before = (ts + tol >= t0).then_some((left_before, t0, mid, entry));
+    let after_axis = if ts >= t0 { axis } else { entry };
+    let after = (ts - tol <= t1).then_some((!left_before, mid, t1, after_axis));
+    match before {
+        Some(b) => (Some(b), after),
+        None => (after, None),
     }
 }
 
