@@ -9,8 +9,11 @@
 //! During a frame the table of resident blocks is only read: render threads take a shared
 //! read lock (no writer is ever waiting during a frame) and mark the blocks they use with the
 //! frame number in an atomic. Requests go to sharded maps, once per block per tile. The budget
-//! bounds the decoded bytes in the table: a fetched block that finds no room because every
-//! resident block is in use by the frame is dropped and asked for again later.
+//! bounds every decoded byte the cache holds: the blocks in the table plus the blocks fetched
+//! and waiting for publication. A fetcher reserves room for a block before handing it over;
+//! the step between frames makes room for the requests it queues by evicting blocks the frame
+//! did not use, and a block that still finds no room (every resident block in use by the
+//! frame) is dropped and asked for again later.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -62,8 +65,18 @@ struct Queue {
     shutdown: bool,
 }
 
-/// A block a fetcher read: its id, the decoded data or why not, and whether it was read ahead.
-type Fetched = (u32, Result<Data, String>, bool);
+/// What a fetcher made of a block.
+enum Outcome {
+    /// Decoded, its bytes reserved in [`Shared::held`].
+    Loaded(Data),
+    /// Unreadable or undecodable: missing for good.
+    Failed(String),
+    /// Decoded but no room could be reserved: dropped, to be asked for again.
+    NoRoom,
+}
+
+/// A block a fetcher read: its id, the outcome, and whether it was read ahead.
+type Fetched = (u32, Outcome, bool);
 
 /// What the cache and its fetchers share.
 struct Shared {
@@ -76,8 +89,11 @@ struct Shared {
     /// Blocks fetched since the last publication, or why they could not be, and whether they
     /// were read ahead (kept only in free room, never evicting for them).
     done: Mutex<Vec<Fetched>>,
-    /// Decoded bytes published, and the budget: look-ahead reads stop at half of it.
-    resident: AtomicU64,
+    /// Decoded bytes held: published plus fetched and waiting for publication. Never above
+    /// `budget`: fetchers reserve before they hand a block over. Look-ahead reads stop at half.
+    held: AtomicU64,
+    /// The most `held` has been.
+    peak: AtomicU64,
     budget: u64,
     /// Levels read ahead below each block a ray asked for (0: none).
     read_ahead: u8,
@@ -87,7 +103,6 @@ struct Shared {
 #[derive(Default)]
 struct Book {
     resident_bytes: usize,
-    peak: usize,
     loaded: u64,
     evicted: u64,
     requested: u64,
@@ -136,7 +151,8 @@ impl AsyncCache {
             work: Condvar::new(),
             finished: Condvar::new(),
             done: Mutex::new(Vec::new()),
-            resident: AtomicU64::new(0),
+            held: AtomicU64::new(0),
+            peak: AtomicU64::new(0),
             budget: budget_bytes as u64,
             read_ahead: levels,
         });
@@ -160,8 +176,8 @@ impl AsyncCache {
             hits: AtomicU64::new(0),
         };
         if let Some(r) = root {
-            let loaded = Data::load(&cache.shared.scene, r);
-            lock(&cache.shared.done).push((r, loaded, false));
+            let outcome = cache.shared.load(r, false);
+            lock(&cache.shared.done).push((r, outcome, false));
             let mut book = lock(&cache.book);
             cache.publish(&mut book, 0);
         }
@@ -210,61 +226,33 @@ impl AsyncCache {
         None
     }
 
-    /// Publishes the fetched blocks, evicting blocks the frame `frame` did not use.
+    /// Publishes the fetched blocks (their room is reserved already).
     fn publish(&self, book: &mut Book, frame: u64) {
         let done = std::mem::take(&mut *lock(&self.shared.done));
         if done.is_empty() {
             return;
         }
         let mut table = self.table.write().unwrap_or_else(PoisonError::into_inner);
-        // Eviction candidates, least recently used first (ties by id, for repeatable runs).
-        let mut victims: Vec<(u64, u32)> = table
-            .iter()
-            .map(|(&id, r)| (r.last_used.load(Relaxed), id))
-            .filter(|&(used, _)| used < frame)
-            .collect();
-        victims.sort_unstable();
-        let mut victims = victims.into_iter();
-        for (id, result, ahead) in done {
+        for (id, outcome, ahead) in done {
             book.fetching.remove(&id);
-            let data = match result {
-                Ok(d) => d,
-                Err(e) => {
+            let data = match outcome {
+                Outcome::Loaded(d) => d,
+                Outcome::Failed(e) => {
                     book.missing.entry(id).or_insert(e);
                     continue;
                 }
+                Outcome::NoRoom => {
+                    if !ahead {
+                        book.dropped += 1;
+                    }
+                    continue;
+                }
             };
+            let bytes = data.bytes();
             // Read ahead and asked for at once, or asked for again while it was in flight: the
             // same block, kept once.
             if table.contains_key(&id) {
-                continue;
-            }
-            let bytes = data.bytes();
-            if bytes > self.budget {
-                if !ahead {
-                    book.missing.entry(id).or_insert_with(|| {
-                        format!(
-                            "the decoded block needs {bytes} bytes, over the cache budget of {}",
-                            self.budget
-                        )
-                    });
-                }
-                continue;
-            }
-            // Room is made for blocks rays asked for; a block read ahead takes free room only.
-            while !ahead && book.resident_bytes + bytes > self.budget {
-                let Some((_, victim)) = victims.next() else {
-                    break;
-                };
-                if let Some(r) = table.remove(&victim) {
-                    book.resident_bytes -= r.bytes;
-                    book.evicted += 1;
-                }
-            }
-            if book.resident_bytes + bytes > self.budget {
-                if !ahead {
-                    book.dropped += 1;
-                }
+                self.shared.held.fetch_sub(bytes as u64, Relaxed);
                 continue;
             }
             book.resident_bytes += bytes;
@@ -282,10 +270,69 @@ impl AsyncCache {
                 }),
             );
         }
-        book.peak = book.peak.max(book.resident_bytes);
-        self.shared
-            .resident
-            .store(book.resident_bytes as u64, Relaxed);
+    }
+
+    /// Evicts least-recently-used blocks that frame `frame` did not use until `wanted` more
+    /// bytes fit the budget, or nothing is left to evict.
+    fn make_room(&self, book: &mut Book, frame: u64, wanted: u64) {
+        let held = |s: &Shared| s.held.load(Relaxed);
+        if held(&self.shared) + wanted <= self.shared.budget {
+            return;
+        }
+        let mut table = self.table.write().unwrap_or_else(PoisonError::into_inner);
+        // Least recently used first (ties by id, for repeatable runs).
+        let mut victims: Vec<(u64, u32)> = table
+            .iter()
+            .map(|(&id, r)| (r.last_used.load(Relaxed), id))
+            .filter(|&(used, _)| used < frame)
+            .collect();
+        victims.sort_unstable();
+        for (_, victim) in victims {
+            if held(&self.shared) + wanted <= self.shared.budget {
+                break;
+            }
+            if let Some(r) = table.remove(&victim) {
+                book.resident_bytes -= r.bytes;
+                book.evicted += 1;
+                self.shared.held.fetch_sub(r.bytes as u64, Relaxed);
+            }
+        }
+    }
+}
+
+impl Shared {
+    /// Reads and decodes block `id` and reserves room for it.
+    fn load(&self, id: u32, ahead: bool) -> Outcome {
+        let data = match Data::load(&self.scene, id) {
+            Ok(d) => d,
+            Err(e) => return Outcome::Failed(e),
+        };
+        let bytes = data.bytes() as u64;
+        if bytes > self.budget && !ahead {
+            return Outcome::Failed(format!(
+                "the decoded block needs {bytes} bytes, over the cache budget of {}",
+                self.budget
+            ));
+        }
+        let reserved = self.held.fetch_update(Relaxed, Relaxed, |h| {
+            (h + bytes <= self.budget).then_some(h + bytes)
+        });
+        match reserved {
+            Ok(before) => {
+                self.peak.fetch_max(before + bytes, Relaxed);
+                Outcome::Loaded(data)
+            }
+            Err(_) => Outcome::NoRoom,
+        }
+    }
+
+    /// Decoded bytes a block is expected to take, from its directory entry, for making room
+    /// before it is fetched: the decoded shapes are at most about three times the raw bytes.
+    fn estimate(&self, id: u32) -> u64 {
+        self.scene
+            .reader()
+            .entry(id)
+            .map_or(0, |e| 3 * u64::from(e.raw_length))
     }
 }
 
@@ -301,7 +348,7 @@ fn fetch_loop(s: &Shared) {
                     q.in_flight += 1;
                     break (id, s.read_ahead, false);
                 }
-                let room = s.resident.load(Relaxed) < s.budget / 2;
+                let room = s.held.load(Relaxed) < s.budget / 2;
                 if let Some((id, levels)) = q.ahead.pop().filter(|_| room) {
                     q.in_flight += 1;
                     break (id, levels, true);
@@ -309,12 +356,14 @@ fn fetch_loop(s: &Shared) {
                 q = s.work.wait(q).unwrap_or_else(PoisonError::into_inner);
             }
         };
-        let result = Data::load(&s.scene, id);
-        let children: Vec<u32> = match &result {
-            Ok(Data::Treelets(d)) if levels > 0 => d.lods.iter().map(|l| l.child_block).collect(),
+        let outcome = s.load(id, ahead);
+        let children: Vec<u32> = match &outcome {
+            Outcome::Loaded(Data::Treelets(d)) if levels > 0 => {
+                d.lods.iter().map(|l| l.child_block).collect()
+            }
             _ => Vec::new(),
         };
-        lock(&s.done).push((id, result, ahead));
+        lock(&s.done).push((id, outcome, ahead));
         let mut q = lock(&s.queue);
         q.in_flight -= 1;
         for c in children {
@@ -371,6 +420,10 @@ impl BlockCache for AsyncCache {
             let table = self.table.read().unwrap_or_else(PoisonError::into_inner);
             ranked.retain(|(_, id)| !table.contains_key(id) && !book.fetching.contains(id));
         }
+        // Room for what is asked, up to half the budget: the rest of the requests fetch into
+        // room that later steps make.
+        let wanted: u64 = ranked.iter().map(|&(_, id)| self.shared.estimate(id)).sum();
+        self.make_room(&mut book, frame, wanted.min(self.shared.budget / 2));
         // Lowest first, as the fetchers pop from the end.
         ranked.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)));
         book.requested += ranked.len() as u64;
@@ -407,7 +460,7 @@ impl BlockCache for AsyncCache {
             mode: "async",
             budget_bytes: self.budget as u64,
             bytes_resident: b.resident_bytes as u64,
-            peak_bytes_resident: b.peak as u64,
+            peak_bytes_resident: self.shared.peak.load(Relaxed),
             lookups: self.lookups.load(Relaxed),
             hits: self.hits.load(Relaxed),
             blocks_loaded: b.loaded,

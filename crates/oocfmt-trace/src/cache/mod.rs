@@ -36,6 +36,8 @@ pub struct CacheStats {
     pub mode: &'static str,
     pub budget_bytes: u64,
     pub bytes_resident: u64,
+    /// The most decoded bytes held at once; in the asynchronous cache that counts blocks
+    /// fetched and waiting for publication too.
     pub peak_bytes_resident: u64,
     pub lookups: u64,
     pub hits: u64,
