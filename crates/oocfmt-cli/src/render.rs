@@ -166,7 +166,11 @@ impl Cache {
 struct FrameFigures {
     frame: usize,
     file: String,
+    /// The frame's rays.
     ms: f64,
+    /// The cache's step after the frame (publishing, ranking, evicting): part of the time
+    /// between two frames, apart from `ms`.
+    step_ms: f64,
     rays_per_second: f64,
     primary: Endings,
     /// Primary rays that ended on a voxel or a proxy: coarser than full detail.
@@ -183,7 +187,12 @@ struct FrameFigures {
 }
 
 impl FrameFigures {
-    fn new(frame: usize, file: &Path, stats: FrameStats, before: &CacheStats) -> FrameFigures {
+    fn new(
+        frame: usize,
+        file: &Path,
+        (stats, step_ms): (FrameStats, f64),
+        before: &CacheStats,
+    ) -> FrameFigures {
         let c = &stats.cache;
         let lookups = c.lookups.saturating_sub(before.lookups);
         let hits = c.hits.saturating_sub(before.hits);
@@ -191,6 +200,7 @@ impl FrameFigures {
             frame,
             file: file.display().to_string(),
             ms: stats.ms,
+            step_ms,
             rays_per_second: stats.rays_per_second,
             primary: stats.primary,
             coarse_pixels: stats.primary.voxel + stats.primary.proxy,
@@ -217,11 +227,13 @@ fn frame(
     cache: &dyn BlockCache,
     camera: &Camera,
     opts: &RenderOptions,
-) -> Result<(Image, FrameStats), CliError> {
+) -> Result<(Image, FrameStats, f64), CliError> {
     let (image, mut stats) = render(scene, cache, camera, opts).map_err(cli_error)?;
+    let step = std::time::Instant::now();
     cache.end_frame();
+    let step_ms = step.elapsed().as_secs_f64() * 1e3;
     stats.cache = cache.stats();
-    Ok((image, stats))
+    Ok((image, stats, step_ms))
 }
 
 /// The most frames a still image in async mode takes to load what it wants.
@@ -300,7 +312,7 @@ pub fn run(a: &Args) -> CliResult {
     for _ in 1..a.repeat {
         result = frame(&scene, c, &camera, &opts)?;
     }
-    let (image, stats) = result;
+    let (image, stats, _) = result;
     write_png(&a.output, image.width, image.height, &image.rgb).map_err(cli_error)?;
     if let Some(d) = &a.depth_out {
         write_pfm(d, image.width, image.height, &image.depth).map_err(cli_error)?;
@@ -363,7 +375,7 @@ fn walkthrough(
     let mut before = cache.stats();
     let mut reported_missing = 0;
     for (i, camera) in cameras.iter().enumerate() {
-        let (image, stats) = frame(scene, cache, camera, opts)?;
+        let (image, stats, step_ms) = frame(scene, cache, camera, opts)?;
         let file = walk::frame_file(&a.output, i);
         write_png(&file, image.width, image.height, &image.rgb).map_err(cli_error)?;
         if let Some(d) = &a.depth_out {
@@ -375,14 +387,15 @@ fn walkthrough(
         }
         reported_missing = stats.cache.missing_blocks.len();
         let next = stats.cache.clone();
-        let f = FrameFigures::new(i, &file, stats, &before);
+        let f = FrameFigures::new(i, &file, (stats, step_ms), &before);
         before = next;
         let p = &f.primary;
         let _ = writeln!(
             out,
-            "frame {i:4}: {:8.1} ms {:7.2} Mrays/s | tri {} voxel {} proxy {} miss {} | blocks \
+            "frame {i:4}: {:8.1} ms (+{:.1} ms step) {:7.2} Mrays/s | tri {} voxel {} proxy {} miss {} | blocks \
              +{} requested +{} loaded +{} evicted {} pending | {:.1} MiB | hit {:.1}% | {}",
             f.ms,
+            f.step_ms,
             f.rays_per_second / 1e6,
             p.triangle,
             p.voxel,

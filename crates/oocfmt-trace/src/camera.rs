@@ -23,8 +23,8 @@ pub struct Frame {
     forward: [f64; 3],
     right: [f64; 3],
     up: [f64; 3],
-    /// tan(fov_y / 2).
-    tan_half: f64,
+    /// The size of a pixel on the image plane at distance 1.
+    pixel: f64,
     width: u32,
     height: u32,
 }
@@ -93,12 +93,13 @@ impl Camera {
         }
         let right = normalize(r);
         let up = cross(right, forward);
+        let tan_half = (self.fov_y / 2.0).to_radians().tan();
         Ok(Frame {
             eye: self.eye.map(|c| c as f32),
             forward,
             right,
             up,
-            tan_half: (self.fov_y / 2.0).to_radians().tan(),
+            pixel: 2.0 * tan_half / f64::from(self.height),
             width: self.width,
             height: self.height,
         })
@@ -108,18 +109,19 @@ impl Camera {
 impl Frame {
     /// The primary ray through the centre of pixel (x, y), with a unit direction.
     pub fn ray(&self, x: u32, y: u32) -> Ray {
-        let w = f64::from(self.width);
-        let h = f64::from(self.height);
-        let sx = (2.0 * (f64::from(x) + 0.5) / w - 1.0) * self.tan_half * w / h;
-        let sy = (1.0 - 2.0 * (f64::from(y) + 0.5) / h) * self.tan_half;
-        let d =
-            normalize([0, 1, 2].map(|k| self.forward[k] + sx * self.right[k] + sy * self.up[k]));
-        Ray::new(self.eye, d.map(|c| c as f32))
+        // Pixel (x, y)'s centre on the image plane at distance 1, in pixels from the image's
+        // centre (exact: halves of integers), then scaled: the centre pixel of an odd-sized
+        // image looks exactly forward.
+        let sx = (f64::from(x) + 0.5 - f64::from(self.width) / 2.0) * self.pixel;
+        let sy = (f64::from(self.height) / 2.0 - f64::from(y) - 0.5) * self.pixel;
+        let d = [0, 1, 2].map(|k| self.forward[k] + sx * self.right[k] + sy * self.up[k]);
+        let r = 1.0 / length(d);
+        Ray::new(self.eye, d.map(|c| (c * r) as f32))
     }
 
     /// World size of one pixel per unit of distance along the view axis.
     pub fn pixel_angle(&self) -> f64 {
-        2.0 * self.tan_half / f64::from(self.height)
+        self.pixel
     }
 
     pub fn width(&self) -> u32 {

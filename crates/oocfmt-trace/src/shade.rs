@@ -57,17 +57,43 @@ pub fn shade(hit: &Hit, ray: &Ray, materials: &[Material]) -> [f32; 3] {
     albedo.map(|c| c.clamp(0.0, 1.0) * light)
 }
 
-/// Linear to sRGB-encoded 8 bits: the sRGB curve rounded to the nearest level, looked up
-/// among the 255 linear values where the level changes (found once, by bisection over the
-/// exact curve), so no `powf` per pixel and the same bytes as the formula.
+/// Linear to sRGB-encoded 8 bits: the sRGB curve rounded to the nearest level, without a
+/// `powf` per pixel and with the same bytes as the formula. The 255 linear values where the
+/// level changes are found once, by bisection over the exact curve; a table of 4096 equal
+/// steps of [0, 1] gives the level at the start of each step, and the few level changes
+/// inside a step are then passed one by one.
 pub fn encode_srgb(c: f32) -> u8 {
-    if c.is_nan() {
+    if c.is_nan() || c <= 0.0 {
         return 0;
     }
-    let steps = SRGB_STEPS.get_or_init(|| {
-        (1..=255u32)
+    let t = SRGB.get_or_init(SrgbTable::new);
+    let mut level = t
+        .start
+        .get((c * BUCKETS as f32) as usize)
+        .copied()
+        .unwrap_or(255);
+    while let Some(&step) = t.steps.get(usize::from(level)) {
+        if c < step {
+            break;
+        }
+        level += 1;
+    }
+    level
+}
+
+const BUCKETS: usize = 4096;
+
+struct SrgbTable {
+    /// `steps[l]`: the smallest linear value encoded as level l + 1.
+    steps: Vec<f32>,
+    /// The level of each bucket's lower end.
+    start: Vec<u8>,
+}
+
+impl SrgbTable {
+    fn new() -> SrgbTable {
+        let steps: Vec<f32> = (1..=255u32)
             .map(|level| {
-                // The smallest non-negative f32 whose exact encoding reaches `level`.
                 let (mut lo, mut hi) = (0u32, 1f32.to_bits());
                 while lo < hi {
                     let mid = lo + (hi - lo) / 2;
@@ -79,12 +105,27 @@ pub fn encode_srgb(c: f32) -> u8 {
                 }
                 f32::from_bits(lo)
             })
-            .collect()
-    });
-    steps.partition_point(|&s| s <= c) as u8
+            .collect();
+        let start = (0..BUCKETS)
+            .map(|b| {
+                // The smallest value that lands in bucket b, as `encode_srgb` computes buckets.
+                let (mut lo, mut hi) = (0u32, 1f32.to_bits());
+                while lo < hi {
+                    let mid = lo + (hi - lo) / 2;
+                    if (f32::from_bits(mid) * BUCKETS as f32) as usize >= b {
+                        hi = mid;
+                    } else {
+                        lo = mid + 1;
+                    }
+                }
+                steps.partition_point(|&s| s <= f32::from_bits(lo)) as u8
+            })
+            .collect();
+        SrgbTable { steps, start }
+    }
 }
 
-static SRGB_STEPS: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+static SRGB: std::sync::OnceLock<SrgbTable> = std::sync::OnceLock::new();
 
 fn srgb_exact(c: f32) -> u8 {
     let c = c.clamp(0.0, 1.0);
