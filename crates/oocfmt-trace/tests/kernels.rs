@@ -2,6 +2,8 @@
 //! watertightness on a closed mesh (rays aimed exactly at shared edges and vertices).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
 use oocfmt_trace::intersect::Ray;
 use proptest::prelude::*;
 
@@ -73,48 +75,9 @@ proptest! {
 
 /// An octahedron subdivided `levels` times and pushed onto the unit sphere: a closed mesh
 /// whose neighbouring triangles share vertex indices, hence bit-identical edges.
-fn sphere(levels: u32) -> (Vec<[f32; 3]>, Vec<[usize; 3]>) {
-    let mut v: Vec<[f64; 3]> = vec![
-        [1.0, 0.0, 0.0],
-        [-1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, -1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [0.0, 0.0, -1.0],
-    ];
-    let mut f: Vec<[usize; 3]> = vec![
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
-    for _ in 0..levels {
-        let mut mids = std::collections::HashMap::new();
-        let mut mid = |i: usize, j: usize, v: &mut Vec<[f64; 3]>| {
-            *mids.entry((i.min(j), i.max(j))).or_insert_with(|| {
-                let m = [0, 1, 2].map(|k| (v[i][k] + v[j][k]) / 2.0);
-                let l = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
-                v.push(m.map(|c| c / l));
-                v.len() - 1
-            })
-        };
-        let mut next = Vec::new();
-        for [a, b, c] in f {
-            let (ab, bc, ca) = (mid(a, b, &mut v), mid(b, c, &mut v), mid(c, a, &mut v));
-            next.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
-        }
-        f = next;
-    }
-    (v.iter().map(|p| p.map(|c| c as f32)).collect(), f)
-}
-
 #[test]
 fn rays_at_shared_edges_and_vertices_never_slip_through() {
-    let (v, f) = sphere(4);
+    let (v, f) = common::sphere(4);
     let origins = [
         [0.0f32, 0.0, 0.0],
         [0.123, -0.071, 0.302],

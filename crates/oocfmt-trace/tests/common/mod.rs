@@ -68,3 +68,44 @@ pub fn brute_force(rays: &[Ray], triangles: &Arc<Vec<[[f32; 3]; 3]>>) -> Vec<f32
         })
         .collect()
 }
+
+/// A unit sphere: an octahedron subdivided `levels` times, vertices pushed onto the sphere
+/// (shared between neighbouring triangles: a closed mesh).
+pub fn sphere(levels: u32) -> (Vec<[f32; 3]>, Vec<[usize; 3]>) {
+    let mut v: Vec<[f64; 3]> = vec![
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    let mut f: Vec<[usize; 3]> = vec![
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    for _ in 0..levels {
+        let mut mids = std::collections::HashMap::new();
+        let mut mid = |i: usize, j: usize, v: &mut Vec<[f64; 3]>| {
+            *mids.entry((i.min(j), i.max(j))).or_insert_with(|| {
+                let m = [0, 1, 2].map(|k| (v[i][k] + v[j][k]) / 2.0);
+                let l = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+                v.push(m.map(|c| c / l));
+                v.len() - 1
+            })
+        };
+        let mut next = Vec::new();
+        for [a, b, c] in f {
+            let (ab, bc, ca) = (mid(a, b, &mut v), mid(b, c, &mut v), mid(c, a, &mut v));
+            next.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+        }
+        f = next;
+    }
+    (v.iter().map(|p| p.map(|c| c as f32)).collect(), f)
+}
