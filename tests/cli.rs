@@ -553,3 +553,62 @@ fn a_scene_over_the_memory_limit_converts_out_of_core_without_loss() {
         assert!(leftovers.is_empty(), "{leftovers:?}");
     }
 }
+
+/// "Model only what a scene needs": a scene without normals, colours or materials stores
+/// none, and its container is smaller than the same scene's with them.
+#[test]
+fn a_scene_without_attributes_stores_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    gen(d, "cad", "3000", "full.obj");
+    let full = std::fs::read_to_string(d.join("full.obj")).unwrap();
+    assert!(
+        full.contains("\nvn ") && full.contains("usemtl"),
+        "the generator writes attributes"
+    );
+    // The same triangles with the normals and materials stripped from the input.
+    let bare: String = full
+        .lines()
+        .filter(|l| !(l.starts_with("vn ") || l.starts_with("usemtl") || l.starts_with("mtllib")))
+        .map(|l| match l.strip_prefix("f ") {
+            Some(f) => {
+                let corners: Vec<&str> = f
+                    .split_whitespace()
+                    .map(|c| c.split('/').next().unwrap_or(c))
+                    .collect();
+                format!("f {}\n", corners.join(" "))
+            }
+            None => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(d.join("bare.obj"), bare).unwrap();
+    let mut per_triangle = Vec::new();
+    let mut sizes = Vec::new();
+    for name in ["full", "bare"] {
+        let report = convert_ok(d, &[&format!("{name}.obj"), "-o", &format!("{name}.oocf")]);
+        assert_eq!(report["import"]["triangles_out"], 3000, "{name}: {report}");
+        let info = run_ok(&["inspect", &format!("{name}.oocf"), "--json"], d);
+        let info: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+        let schema = &info["metadata"]["schema"];
+        let stored = name == "full";
+        assert_eq!(schema["vertex_normals"], stored, "{name}: {schema}");
+        assert_eq!(schema["triangle_materials"], stored, "{name}: {schema}");
+        assert_eq!(schema["vertex_colours"], false, "{name}: {schema}");
+        per_triangle.push(info["tree"]["bytes_per_triangle"].as_f64().unwrap());
+        sizes.push(
+            std::fs::metadata(d.join(format!("{name}.oocf")))
+                .unwrap()
+                .len(),
+        );
+    }
+    assert!(
+        sizes[1] < sizes[0],
+        "bare {} bytes, with attributes {}",
+        sizes[1],
+        sizes[0]
+    );
+    assert!(
+        per_triangle[1] < per_triangle[0],
+        "bytes per triangle {per_triangle:?}"
+    );
+}
