@@ -558,10 +558,10 @@ fn a_scene_over_the_memory_limit_converts_out_of_core_without_loss() {
 /// none, and its container is smaller than the same scene's with them.
 #[test]
 fn a_scene_without_attributes_stores_none() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let d = dir.path();
     gen(d, "cad", "3000", "full.obj");
-    let full = std::fs::read_to_string(d.join("full.obj")).unwrap();
+    let full = std::fs::read_to_string(d.join("full.obj")).unwrap_or_else(|e| panic!("{e}"));
     assert!(
         full.contains("\nvn ") && full.contains("usemtl"),
         "the generator writes attributes"
@@ -581,20 +581,25 @@ fn a_scene_without_attributes_stores_none() {
             None => format!("{l}\n"),
         })
         .collect();
-    std::fs::write(d.join("bare.obj"), bare).unwrap();
+    std::fs::write(d.join("bare.obj"), bare).unwrap_or_else(|e| panic!("{e}"));
     let mut per_triangle = Vec::new();
     let mut sizes = Vec::new();
     for name in ["full", "bare"] {
         let report = convert_ok(d, &[&format!("{name}.obj"), "-o", &format!("{name}.oocf")]);
         assert_eq!(report["import"]["triangles_out"], 3000, "{name}: {report}");
         let info = run_ok(&["inspect", &format!("{name}.oocf"), "--json"], d);
-        let info: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+        let info: serde_json::Value =
+            serde_json::from_slice(&info.stdout).unwrap_or_else(|e| panic!("{e}"));
         let schema = &info["metadata"]["schema"];
         let stored = name == "full";
         assert_eq!(schema["vertex_normals"], stored, "{name}: {schema}");
         assert_eq!(schema["triangle_materials"], stored, "{name}: {schema}");
         assert_eq!(schema["vertex_colours"], false, "{name}: {schema}");
-        per_triangle.push(info["tree"]["bytes_per_triangle"].as_f64().unwrap());
+        per_triangle.push(
+            info["tree"]["bytes_per_triangle"]
+                .as_f64()
+                .unwrap_or(f64::NAN),
+        );
         sizes.push(
             std::fs::metadata(d.join(format!("{name}.oocf")))
                 .unwrap()
