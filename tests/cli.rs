@@ -602,7 +602,7 @@ fn a_scene_without_attributes_stores_none() {
         );
         sizes.push(
             std::fs::metadata(d.join(format!("{name}.oocf")))
-                .unwrap()
+                .unwrap_or_else(|e| panic!("{e}"))
                 .len(),
         );
     }
