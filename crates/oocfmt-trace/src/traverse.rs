@@ -46,6 +46,9 @@ pub struct Hit {
     /// Distance along the ray's direction (the image's depth for a unit direction).
     pub t: f32,
     pub surface: Surface,
+    /// The radius of the sphere enclosing the cell of the voxel or proxy the ray ended on
+    /// (half the cell's diagonal): secondary rays start beyond it. 0 for a triangle.
+    pub radius: f32,
 }
 
 /// Blocks one group of rays (a tile) has looked up: the shared cache is asked once per block
@@ -298,6 +301,7 @@ impl<'a> Tracer<'a> {
                                 &mut best_t,
                                 t0,
                                 Surface::Voxel(voxel_sample(&voxel, axis, ray)),
+                                radius,
                             );
                             break;
                         }
@@ -307,7 +311,13 @@ impl<'a> Tracer<'a> {
                                 Some(p) => {
                                     let s = proxy_sample(&p.samples, ray);
                                     if !s.is_empty() {
-                                        offer(&mut best, &mut best_t, t0, Surface::Proxy(s));
+                                        offer(
+                                            &mut best,
+                                            &mut best_t,
+                                            t0,
+                                            Surface::Proxy(s),
+                                            radius,
+                                        );
                                     }
                                 }
                                 None => offer(
@@ -315,6 +325,7 @@ impl<'a> Tracer<'a> {
                                     &mut best_t,
                                     t0,
                                     Surface::Voxel(voxel_sample(&voxel, axis, ray)),
+                                    radius,
                                 ),
                             }
                             break;
@@ -371,6 +382,7 @@ impl<'a> Tracer<'a> {
                                                     triangle: u32::from(ti),
                                                     bary: h.bary,
                                                 },
+                                                radius: 0.0,
                                             });
                                         }
                                     }
@@ -383,7 +395,13 @@ impl<'a> Tracer<'a> {
                                 }
                                 if let Some(lv) = last {
                                     let s = voxel_sample(&lv.voxel, lv.axis, ray);
-                                    offer(&mut best, &mut best_t, lv.t, Surface::Voxel(s));
+                                    offer(
+                                        &mut best,
+                                        &mut best_t,
+                                        lv.t,
+                                        Surface::Voxel(s),
+                                        lv.radius,
+                                    );
                                 }
                             }
                         }
@@ -436,10 +454,10 @@ impl<'a> Tracer<'a> {
     }
 }
 
-fn offer(best: &mut Option<Hit>, best_t: &mut f32, t: f32, surface: Surface) {
+fn offer(best: &mut Option<Hit>, best_t: &mut f32, t: f32, surface: Surface, radius: f32) {
     if t < *best_t {
         *best_t = t;
-        *best = Some(Hit { t, surface });
+        *best = Some(Hit { t, surface, radius });
     }
 }
 
