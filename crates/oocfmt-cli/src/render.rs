@@ -78,6 +78,37 @@ pub struct Args {
     /// Render threads (default: all cores)
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Primary rays per pixel, at stratified points of the pixel (deterministic), averaged in
+    /// linear RGB; 1 is the ray through the pixel centre. The depth image (--depth-out) and the
+    /// primary-ray endings stay those of the centre ray, traced in addition when N > 1
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=i64::from(oocfmt_trace::render::MAX_SAMPLES)))]
+    pub spp: u32,
+    /// Light with a point light (Lambert, one shadow ray per hit) instead of the headlight.
+    /// Shadow rays use the PoE metric carried over to the light's projection: a voxel ends one
+    /// when the shadow it casts moves at most --poe pixels on the receiver
+    #[arg(long)]
+    pub shadows: bool,
+    /// The point light of --shadows, X,Y,Z in world coordinates (default: over the camera's
+    /// right shoulder, eye + D·(0.5 right + 0.7 up − 0.3 forward), D the model's box diagonal)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "shadows")]
+    pub light: Option<[f64; 3]>,
+    /// Ambient occlusion: N rays per primary hit, cosine-weighted over the hemisphere; with
+    /// --poe > 0 a voxel ends one when its radius is at most t·√(2/N) (the ray's cone of 2π/N
+    /// steradians)
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(oocfmt_trace::render::MAX_SAMPLES)))]
+    pub ao: Option<u32>,
+    /// How far ambient-occlusion rays look, in world units (default: 0.1 × the model's box
+    /// diagonal)
+    #[arg(long, value_parser = parse_distance, allow_hyphen_values = true, requires = "ao")]
+    pub ao_distance: Option<f32>,
+}
+
+/// A finite distance > 0 that fits an f32.
+fn parse_distance(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(d) if d.is_finite() && d > 0.0 => Ok(d),
+        _ => Err(format!("`{s}`: expected a finite distance > 0")),
+    }
 }
 
 /// `WIDTHxHEIGHT`, each 1 ..= 16384.
@@ -266,6 +297,11 @@ pub fn run(a: &Args) -> CliResult {
     let stored = |p: [f64; 3]| [0, 1, 2].map(|k| p[k] - origin[k]);
     let opts = RenderOptions {
         poe: a.poe,
+        spp: a.spp,
+        shadows: a.shadows,
+        light: a.light.map(stored),
+        ao: a.ao.unwrap_or(0),
+        ao_distance: a.ao_distance,
         ..RenderOptions::default()
     };
     if let Some(cameras) = path_cameras {
@@ -345,6 +381,13 @@ pub fn run(a: &Args) -> CliResult {
         "primary rays: {} triangle, {} voxel, {} proxy, {} miss",
         p.triangle, p.voxel, p.proxy, p.miss
     );
+    if stats.rays > stats.primary_rays || stats.spp > 1 {
+        let _ = writeln!(
+            out,
+            "rays: {} primary ({} per pixel), {} shadow, {} ambient occlusion",
+            stats.primary_rays, stats.spp, stats.shadow_rays, stats.ao_rays
+        );
+    }
     let c = &stats.cache;
     let _ = writeln!(
         out,

@@ -1,6 +1,6 @@
 //! A pinhole camera. Positions are in the container's stored coordinates (world minus the
 //! metadata origin). One ray per pixel through the pixel centre (x + 0.5, y + 0.5), row 0 at
-//! the top.
+//! the top; more rays per pixel go through points inside the pixel ([`Frame::ray_at`]).
 
 use crate::error::TraceError;
 use crate::intersect::Ray;
@@ -19,7 +19,7 @@ pub struct Camera {
 /// The camera's frame, ready to make rays.
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {
-    eye: [f32; 3],
+    eye: [f64; 3],
     forward: [f64; 3],
     right: [f64; 3],
     up: [f64; 3],
@@ -95,7 +95,7 @@ impl Camera {
         let up = cross(right, forward);
         let tan_half = (self.fov_y / 2.0).to_radians().tan();
         Ok(Frame {
-            eye: self.eye.map(|c| c as f32),
+            eye: self.eye,
             forward,
             right,
             up,
@@ -109,14 +109,30 @@ impl Camera {
 impl Frame {
     /// The primary ray through the centre of pixel (x, y), with a unit direction.
     pub fn ray(&self, x: u32, y: u32) -> Ray {
-        // Pixel (x, y)'s centre on the image plane at distance 1, in pixels from the image's
-        // centre (exact: halves of integers), then scaled: the centre pixel of an odd-sized
-        // image looks exactly forward.
-        let sx = (f64::from(x) + 0.5 - f64::from(self.width) / 2.0) * self.pixel;
-        let sy = (f64::from(self.height) / 2.0 - f64::from(y) - 0.5) * self.pixel;
+        self.ray_at(f64::from(x) + 0.5, f64::from(y) + 0.5)
+    }
+
+    /// The primary ray through the point (px, py) of the image plane, in pixels from the top
+    /// left corner (pixel (x, y) covers [x, x + 1) × [y, y + 1)), with a unit direction.
+    pub fn ray_at(&self, px: f64, py: f64) -> Ray {
+        // The point on the image plane at distance 1, in pixels from the image's centre (exact
+        // for pixel centres: halves of integers), then scaled: the centre pixel of an
+        // odd-sized image looks exactly forward.
+        let sx = (px - f64::from(self.width) / 2.0) * self.pixel;
+        let sy = (f64::from(self.height) / 2.0 - py) * self.pixel;
         let d = [0, 1, 2].map(|k| self.forward[k] + sx * self.right[k] + sy * self.up[k]);
         let r = 1.0 / length(d);
-        Ray::new(self.eye, d.map(|c| (c * r) as f32))
+        Ray::new(self.eye.map(|c| c as f32), d.map(|c| (c * r) as f32))
+    }
+
+    /// The eye position.
+    pub fn eye(&self) -> [f64; 3] {
+        self.eye
+    }
+
+    /// The unit vectors forward, right and up of the view.
+    pub fn basis(&self) -> ([f64; 3], [f64; 3], [f64; 3]) {
+        (self.forward, self.right, self.up)
     }
 
     /// World size of one pixel per unit of distance along the view axis.

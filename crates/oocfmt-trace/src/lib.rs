@@ -8,10 +8,14 @@ pub mod cache;
 pub mod camera;
 pub mod error;
 pub mod intersect;
+pub mod light;
+pub mod occlusion;
 pub mod output;
 pub mod render;
+pub mod sampling;
 pub mod scene;
 pub mod shade;
+pub mod spawn;
 pub mod traverse;
 pub mod walk;
 

@@ -1,4 +1,9 @@
 //! One frame: rays in parallel over 16 × 16 tiles, an RGB8 image, a depth image and figures.
+//!
+//! Each pixel's centre ray gives its depth and its ending (the figures' primary endings). With
+//! one ray per pixel it also gives the colour; with `spp` > 1 the colour is the mean, in linear
+//! RGB, of `spp` further rays through stratified points of the pixel
+//! ([`crate::sampling::pixel_offset`]), so the depth stays that of the centre.
 
 use std::time::Instant;
 
@@ -8,14 +13,20 @@ use serde::Serialize;
 use crate::cache::{BlockCache, CacheStats};
 use crate::camera::Camera;
 use crate::error::TraceError;
+use crate::light::{shoulder_light, Shadows};
+use crate::occlusion::{default_distance, Occlusion};
+use crate::sampling::{hash, pixel_offset, Stream};
 use crate::scene::Scene;
-use crate::shade::{encode_srgb, shade};
+use crate::shade::{encode_srgb, Lighting, Secondary};
 use crate::traverse::{Memo, Surface, Tracer};
 
 const TILE: u32 = 16;
 
-/// A finished tile: its index, colours, depths and ray endings.
-type TileOut = (u32, Vec<[u8; 3]>, Vec<f32>, Endings, u64);
+/// The most primary rays per pixel and ambient-occlusion rays per primary ray.
+pub const MAX_SAMPLES: u32 = 1024;
+
+/// A finished tile: its index, colours, depths, ray endings, secondary rays and nodes visited.
+type TileOut = (u32, Vec<[u8; 3]>, Vec<f32>, Endings, Secondary, u64);
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderOptions {
@@ -24,14 +35,62 @@ pub struct RenderOptions {
     pub poe: f32,
     /// Linear RGB of a ray that hits nothing.
     pub background: [f32; 3],
+    /// Primary rays per pixel, 1 ..= [`MAX_SAMPLES`]: 1 is the pixel's centre; more are
+    /// stratified over the pixel and averaged in linear RGB.
+    pub spp: u32,
+    /// Lambert from a point light, with one shadow ray per primary hit, instead of the
+    /// headlight.
+    pub shadows: bool,
+    /// The point light in stored coordinates; None: [`shoulder_light`] of the camera.
+    pub light: Option<[f64; 3]>,
+    /// Ambient-occlusion rays per primary hit, 0 ..= [`MAX_SAMPLES`] (0: none).
+    pub ao: u32,
+    /// How far ambient-occlusion rays look; None: [`default_distance`] of the scene.
+    pub ao_distance: Option<f32>,
+}
+
+impl RenderOptions {
+    /// Full detail, headlight, one ray per pixel.
+    pub const DEFAULT: RenderOptions = RenderOptions {
+        poe: 0.0,
+        background: [0.05, 0.06, 0.08],
+        spp: 1,
+        shadows: false,
+        light: None,
+        ao: 0,
+        ao_distance: None,
+    };
+
+    fn check(&self) -> Result<(), TraceError> {
+        let bad = |m: String| Err(TraceError::Options(m));
+        if !(self.poe.is_finite() && self.poe >= 0.0) {
+            return bad(format!("--poe {}: expected a finite number >= 0", self.poe));
+        }
+        if !(1..=MAX_SAMPLES).contains(&self.spp) {
+            return bad(format!("--spp {}: expected 1 to {MAX_SAMPLES}", self.spp));
+        }
+        if self.ao > MAX_SAMPLES {
+            return bad(format!("--ao {}: expected 0 to {MAX_SAMPLES}", self.ao));
+        }
+        if let Some(d) = self.ao_distance {
+            if !(d.is_finite() && d > 0.0) {
+                return bad(format!("--ao-distance {d}: expected a finite number > 0"));
+            }
+        }
+        if let Some(l) = self.light {
+            if l.iter()
+                .any(|c| !c.is_finite() || c.abs() > f64::from(f32::MAX))
+            {
+                return bad(format!("--light {l:?}: expected finite coordinates"));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions {
-            poe: 0.0,
-            background: [0.05, 0.06, 0.08],
-        }
+        RenderOptions::DEFAULT
     }
 }
 
@@ -71,8 +130,18 @@ pub struct FrameStats {
     pub lod_c: f64,
     pub threads: usize,
     pub ms: f64,
+    /// Every ray traced: primary, shadow and ambient occlusion.
     pub rays: u64,
+    /// `rays` per second of the frame.
     pub rays_per_second: f64,
+    /// Primary rays per pixel for the colour.
+    pub spp: u32,
+    /// Primary rays: one per pixel, plus `spp` per pixel when `spp` > 1 (the centre ray then
+    /// gives the depth and the endings only).
+    pub primary_rays: u64,
+    pub shadow_rays: u64,
+    pub ao_rays: u64,
+    /// How the pixels' centre rays ended.
     pub primary: Endings,
     /// Kd-tree nodes (inner, LOD, leaf) the frame's rays visited.
     pub nodes_visited: u64,
@@ -87,17 +156,27 @@ pub fn render(
     camera: &Camera,
     opts: &RenderOptions,
 ) -> Result<(Image, FrameStats), TraceError> {
-    if !(opts.poe.is_finite() && opts.poe >= 0.0) {
-        return Err(TraceError::Options(format!(
-            "--poe {}: expected a finite number >= 0",
-            opts.poe
-        )));
-    }
+    opts.check()?;
     let frame = camera.frame()?;
     let lod_c = f64::from(opts.poe) * frame.pixel_angle();
     let tracer = Tracer::new(scene, cache, lod_c as f32);
-    let materials = &scene.metadata().materials;
+    let m = scene.metadata();
+    let bounds = (m.scene.bounds_min, m.scene.bounds_max);
+    let shadows = opts.shadows.then(|| {
+        let light = opts
+            .light
+            .unwrap_or_else(|| shoulder_light(&frame, bounds.0, bounds.1));
+        Shadows::new(scene, cache, light.map(|c| c as f32), lod_c as f32)
+    });
+    let occlusion = (opts.ao > 0).then(|| {
+        let distance = opts
+            .ao_distance
+            .unwrap_or_else(|| default_distance(bounds.0, bounds.1));
+        Occlusion::new(scene, cache, opts.ao, distance, opts.poe > 0.0)
+    });
+    let lighting = Lighting::new(&m.materials, shadows, occlusion, bounds);
     let (w, h) = (frame.width(), frame.height());
+    let spp = opts.spp;
     let tiles_x = w.div_ceil(TILE);
     let tiles = tiles_x * h.div_ceil(TILE);
     let background = opts.background.map(encode_srgb);
@@ -114,29 +193,57 @@ pub fn render(
                 let mut rgb = Vec::with_capacity(n);
                 let mut depth = Vec::with_capacity(n);
                 let mut endings = Endings::default();
+                let mut secondary = Secondary::default();
                 for y in y0..y1 {
                     for x in x0..x1 {
                         let ray = frame.ray(x, y);
-                        match tracer.trace(&ray, memo) {
+                        let hit = tracer.trace(&ray, memo);
+                        match &hit {
                             Some(hit) => {
                                 match hit.surface {
                                     Surface::Triangle { .. } => endings.triangle += 1,
                                     Surface::Voxel(_) => endings.voxel += 1,
                                     Surface::Proxy(_) => endings.proxy += 1,
                                 }
-                                rgb.push(shade(&hit, &ray, materials).map(encode_srgb));
                                 depth.push(hit.t);
                             }
                             None => {
                                 endings.miss += 1;
-                                rgb.push(background);
                                 depth.push(f32::INFINITY);
                             }
                         }
+                        if spp == 1 {
+                            rgb.push(match &hit {
+                                Some(hit) => {
+                                    let seed = hash(x, y, 0, Stream::Occlusion);
+                                    lighting
+                                        .colour(hit, &ray, seed, memo, &mut secondary)
+                                        .map(encode_srgb)
+                                }
+                                None => background,
+                            });
+                            continue;
+                        }
+                        let mut sum = [0f32; 3];
+                        for k in 0..spp {
+                            let [ox, oy] = pixel_offset(x, y, k, spp);
+                            let ray = frame.ray_at(f64::from(x) + ox, f64::from(y) + oy);
+                            let c = match tracer.trace(&ray, memo) {
+                                Some(hit) => {
+                                    let seed = hash(x, y, k, Stream::Occlusion);
+                                    lighting.colour(&hit, &ray, seed, memo, &mut secondary)
+                                }
+                                None => opts.background,
+                            };
+                            for (s, c) in sum.iter_mut().zip(c) {
+                                *s += c;
+                            }
+                        }
+                        rgb.push(sum.map(|s| encode_srgb(s / spp as f32)));
                     }
                 }
                 memo.flush(cache);
-                (tile, rgb, depth, endings, memo.take_visited())
+                (tile, rgb, depth, endings, secondary, memo.take_visited())
             },
         )
         .collect();
@@ -148,9 +255,11 @@ pub fn render(
         depth: vec![f32::INFINITY; (w as usize) * (h as usize)],
     };
     let mut primary = Endings::default();
+    let mut secondary = Secondary::default();
     let mut nodes_visited = 0;
-    for (tile, rgb, depth, endings, visited) in done {
+    for (tile, rgb, depth, endings, more, visited) in done {
         primary.add(&endings);
+        secondary.add(&more);
         nodes_visited += visited;
         let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);
         let tw = ((x0 + TILE).min(w) - x0) as usize;
@@ -165,7 +274,13 @@ pub fn render(
             }
         }
     }
-    let rays = u64::from(w) * u64::from(h);
+    let pixels = u64::from(w) * u64::from(h);
+    let primary_rays = if spp > 1 {
+        pixels * (1 + u64::from(spp))
+    } else {
+        pixels
+    };
+    let rays = primary_rays + secondary.shadow + secondary.ao;
     let stats = FrameStats {
         width: w,
         height: h,
@@ -175,6 +290,10 @@ pub fn render(
         ms: seconds * 1e3,
         rays,
         rays_per_second: rays as f64 / seconds.max(1e-9),
+        spp,
+        primary_rays,
+        shadow_rays: secondary.shadow,
+        ao_rays: secondary.ao,
         primary,
         nodes_visited,
         nodes_per_ray: nodes_visited as f64 / rays.max(1) as f64,

@@ -1,18 +1,43 @@
-//! Headlight Lambert shading: the light sits at the eye, so a surface is as bright as it faces
-//! the viewer. Normals are turned towards the viewer (both sides of a triangle are lit).
+//! Shading. By default a headlight: the light sits at the eye, so a surface is as bright as it
+//! faces the viewer; normals are turned towards the viewer (both sides of a triangle are lit).
+//! With `--shadows` the direct light is Lambert from a point light, times what one shadow ray
+//! finds; a surface lights only when the light is on the viewer's side of it (a closed mesh is
+//! dark inside and on its far side). With `--ao N` the ambient term is scaled by the share of
+//! N ambient-occlusion rays that escape, and weighs [`AO_AMBIENT`] instead of [`AMBIENT`], so
+//! that it shows. Colour = albedo · (ambient · open share + (1 − ambient) · direct).
 
 use oocfmt::metadata::Material;
 
 use crate::intersect::Ray;
-use crate::traverse::{Hit, Surface};
+use crate::light::{unit_towards, Shadows};
+use crate::occlusion::Occlusion;
+use crate::spawn::{triangle_normal, Origin};
+use crate::traverse::{Hit, Memo, Surface};
 
 /// The colour of surfaces without vertex colours or materials (linear RGB).
 pub const DEFAULT_ALBEDO: [f32; 3] = [0.78, 0.76, 0.72];
-const AMBIENT: f32 = 0.12;
+/// The weight of the ambient term without ambient occlusion.
+pub const AMBIENT: f32 = 0.12;
+/// The weight of the ambient term with ambient occlusion.
+pub const AO_AMBIENT: f32 = 0.35;
 
-/// The linear RGB colour of a hit.
+/// The linear RGB colour of a hit under the headlight.
 pub fn shade(hit: &Hit, ray: &Ray, materials: &[Material]) -> [f32; 3] {
-    let (albedo, normal) = match &hit.surface {
+    let (albedo, normal) = attributes(hit, materials);
+    let len = dot(normal, normal).sqrt();
+    let cos = if len > 0.0 && len.is_finite() {
+        (dot(normal, ray.dir) / len).abs().min(1.0)
+    } else {
+        1.0
+    };
+    let light = AMBIENT + (1.0 - AMBIENT) * cos;
+    albedo.map(|c| c.clamp(0.0, 1.0) * light)
+}
+
+/// The albedo and the (not normalised) shading normal of a hit: vertex colours, else the
+/// material, else [`DEFAULT_ALBEDO`]; interpolated vertex normals, else the geometric normal.
+fn attributes(hit: &Hit, materials: &[Material]) -> ([f32; 3], [f32; 3]) {
+    match &hit.surface {
         Surface::Triangle {
             data,
             triangle,
@@ -46,15 +71,154 @@ pub fn shade(hit: &Hit, ray: &Ray, materials: &[Material]) -> [f32; 3] {
             (albedo, n)
         }
         Surface::Voxel(s) | Surface::Proxy(s) => (s.colour(), s.normal()),
-    };
-    let len = dot(normal, normal).sqrt();
-    let cos = if len > 0.0 && len.is_finite() {
-        (dot(normal, ray.dir) / len).abs().min(1.0)
+    }
+}
+
+/// Secondary rays traced while shading.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Secondary {
+    pub shadow: u64,
+    pub ao: u64,
+}
+
+impl Secondary {
+    pub fn add(&mut self, o: &Secondary) {
+        self.shadow += o.shadow;
+        self.ao += o.ao;
+    }
+}
+
+/// Everything shading needs for one frame.
+pub struct Lighting<'a> {
+    materials: &'a [Material],
+    shadows: Option<Shadows<'a>>,
+    occlusion: Option<Occlusion<'a>>,
+    /// The largest coordinate of the scene's box (for the origins of rays leaving voxels).
+    scale: f32,
+}
+
+impl<'a> Lighting<'a> {
+    pub fn new(
+        materials: &'a [Material],
+        shadows: Option<Shadows<'a>>,
+        occlusion: Option<Occlusion<'a>>,
+        bounds: ([f32; 3], [f32; 3]),
+    ) -> Lighting<'a> {
+        let scale = bounds
+            .0
+            .iter()
+            .chain(&bounds.1)
+            .fold(0f32, |a, &c| a.max(c.abs()));
+        Lighting {
+            materials,
+            shadows,
+            occlusion,
+            scale,
+        }
+    }
+
+    /// True when neither shadows nor ambient occlusion are on: [`shade`] is the whole story.
+    pub fn is_headlight(&self) -> bool {
+        self.shadows.is_none() && self.occlusion.is_none()
+    }
+
+    /// The linear RGB colour of `hit`, the nearest hit of primary `ray`, tracing the secondary
+    /// rays it needs (counted in `counts`); `seed` rotates the AO pattern of this primary ray.
+    pub fn colour(
+        &self,
+        hit: &Hit,
+        ray: &Ray,
+        seed: u64,
+        memo: &mut Memo,
+        counts: &mut Secondary,
+    ) -> [f32; 3] {
+        if self.is_headlight() {
+            return shade(hit, ray, self.materials);
+        }
+        let (albedo, normal) = attributes(hit, self.materials);
+        let (g, n) = self.normals(hit, ray, normal);
+        let from = Origin::of(hit, ray, self.scale);
+        let direct = self.direct_from(hit, ray, &from, g, n, memo, counts);
+        let (ambient, open) = match &self.occlusion {
+            None => (AMBIENT, 1.0),
+            Some(o) => {
+                counts.ao += u64::from(o.rays());
+                (AO_AMBIENT, o.open(&from, g, seed, memo))
+            }
+        };
+        let light = ambient * open + (1.0 - ambient) * direct;
+        albedo.map(|c| c.clamp(0.0, 1.0) * light)
+    }
+
+    /// The direct light at `hit` (the nearest hit of primary `ray`) in [0, 1]: the headlight's
+    /// cosine, or the point light's cosine times what its shadow ray finds (0 when the light is
+    /// behind the surface as the viewer sees it).
+    pub fn direct(&self, hit: &Hit, ray: &Ray, memo: &mut Memo, counts: &mut Secondary) -> f32 {
+        let (_, normal) = attributes(hit, self.materials);
+        let (g, n) = self.normals(hit, ray, normal);
+        let from = Origin::of(hit, ray, self.scale);
+        self.direct_from(hit, ray, &from, g, n, memo, counts)
+    }
+
+    /// The geometric and the shading unit normals, both turned towards the viewer.
+    fn normals(&self, hit: &Hit, ray: &Ray, normal: [f32; 3]) -> ([f32; 3], [f32; 3]) {
+        let back = ray.dir.map(|c| -c);
+        let geometric = match &hit.surface {
+            Surface::Triangle { data, triangle, .. } => data
+                .positions
+                .get(*triangle as usize)
+                .and_then(triangle_normal)
+                .map(|n| n.map(|c| c as f32)),
+            Surface::Voxel(_) | Surface::Proxy(_) => unit(normal),
+        };
+        let g = facing(geometric.unwrap_or(back), ray.dir);
+        (g, unit(normal).map_or(g, |n| facing(n, ray.dir)))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn direct_from(
+        &self,
+        hit: &Hit,
+        ray: &Ray,
+        from: &Origin,
+        g: [f32; 3],
+        n: [f32; 3],
+        memo: &mut Memo,
+        counts: &mut Secondary,
+    ) -> f32 {
+        let Some(s) = &self.shadows else {
+            return dot(n, ray.dir.map(|c| -c)).clamp(0.0, 1.0);
+        };
+        match unit_towards(from.point(), s.light()) {
+            // The light must be on the viewer's side of the surface.
+            Some((l, _)) if dot(g, l) > 0.0 => {
+                let cos = dot(n, l).min(1.0);
+                if cos > 0.0 {
+                    counts.shadow += 1;
+                    if s.visible(from, hit.t, memo) {
+                        return cos;
+                    }
+                }
+                0.0
+            }
+            _ => 0.0,
+        }
+    }
+}
+
+/// `n` turned to face against `dir` (towards the viewer).
+fn facing(n: [f32; 3], dir: [f32; 3]) -> [f32; 3] {
+    if dot(n, dir) > 0.0 {
+        n.map(|c| -c)
     } else {
-        1.0
-    };
-    let light = AMBIENT + (1.0 - AMBIENT) * cos;
-    albedo.map(|c| c.clamp(0.0, 1.0) * light)
+        n
+    }
+}
+
+/// `v` over its length; None for a zero or non-finite vector.
+fn unit(v: [f32; 3]) -> Option<[f32; 3]> {
+    let len = dot(v, v).sqrt();
+    (len > 0.0 && len.is_finite()).then(|| v.map(|c| c / len))
 }
 
 /// Linear to sRGB-encoded 8 bits: the sRGB curve rounded to the nearest level, without a

@@ -49,6 +49,9 @@ pub struct Hit {
     /// Distance along the ray's direction (the image's depth for a unit direction).
     pub t: f32,
     pub surface: Surface,
+    /// The radius of the sphere enclosing the cell of the voxel or proxy the ray ended on
+    /// (half the cell's diagonal): secondary rays start beyond it. 0 for a triangle.
+    pub radius: f32,
 }
 
 /// A block as one group of rays (a tile) saw it.
@@ -194,8 +197,9 @@ enum Best<'m> {
         triangle: u32,
         bary: [f32; 3],
     },
-    Voxel(Sample),
-    Proxy(Sample),
+    /// A sample and the radius of its cell.
+    Voxel(Sample, f32),
+    Proxy(Sample, f32),
 }
 
 pub struct Tracer<'a> {
@@ -350,7 +354,7 @@ impl<'a> Tracer<'a> {
                                 break;
                             };
                             let shown = if stop {
-                                Some(Best::Voxel(voxel_sample(&look.voxel, axis, ray)))
+                                Some(Best::Voxel(voxel_sample(&look.voxel, axis, ray), l.radius))
                             } else {
                                 memo.want(l.child_block, l.radius, t0);
                                 // A proxy that sees nothing in the ray's direction skips the
@@ -358,8 +362,11 @@ impl<'a> Tracer<'a> {
                                 match look.proxy.and_then(|p| self.proxies.get(p as usize)) {
                                     Some(p) => Some(proxy_sample(&p.samples, ray))
                                         .filter(|s| !s.is_empty())
-                                        .map(Best::Proxy),
-                                    None => Some(Best::Voxel(voxel_sample(&look.voxel, axis, ray))),
+                                        .map(|s| Best::Proxy(s, l.radius)),
+                                    None => Some(Best::Voxel(
+                                        voxel_sample(&look.voxel, axis, ray),
+                                        l.radius,
+                                    )),
                                 }
                             };
                             if let Some(s) = shown.filter(|_| t0 < best_t) {
@@ -420,7 +427,7 @@ impl<'a> Tracer<'a> {
                                     memo.want(block, lv.radius, lv.t);
                                     if let Some(s) = lv.sample(ray).filter(|_| lv.t < best_t) {
                                         best_t = lv.t;
-                                        best = Best::Voxel(s);
+                                        best = Best::Voxel(s, lv.radius);
                                     }
                                 }
                                 None => memo.want(block, f32::INFINITY, t0),
@@ -432,21 +439,28 @@ impl<'a> Tracer<'a> {
             }
         }
         memo.visited.set(memo.visited.get() + visited);
-        let surface = match best {
+        let (surface, radius) = match best {
             Best::None => return None,
             Best::Triangle {
                 data,
                 triangle,
                 bary,
-            } => Surface::Triangle {
-                data: Arc::clone(data),
-                triangle,
-                bary,
-            },
-            Best::Voxel(s) => Surface::Voxel(s),
-            Best::Proxy(s) => Surface::Proxy(s),
+            } => (
+                Surface::Triangle {
+                    data: Arc::clone(data),
+                    triangle,
+                    bary,
+                },
+                0.0,
+            ),
+            Best::Voxel(s, r) => (Surface::Voxel(s), r),
+            Best::Proxy(s, r) => (Surface::Proxy(s), r),
         };
-        Some(Hit { t: best_t, surface })
+        Some(Hit {
+            t: best_t,
+            surface,
+            radius,
+        })
     }
 }
 

@@ -67,10 +67,7 @@ fn views(scene: &Scene) -> Vec<Camera> {
     vec![framing, close]
 }
 
-const POE0: RenderOptions = RenderOptions {
-    poe: 0.0,
-    background: [0.05, 0.06, 0.08],
-};
+const POE0: RenderOptions = RenderOptions::DEFAULT;
 
 /// Renders with the asynchronous cache until a frame finds every block it wants (the
 /// fetchers finish between frames); returns that frame and how many frames it took.
