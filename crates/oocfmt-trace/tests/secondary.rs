@@ -325,12 +325,12 @@ fn hits_of(
 ) -> Vec<(Ray, oocfmt_trace::traverse::Hit)> {
     let frame = cam.frame().unwrap();
     let tracer = Tracer::new(scene, cache, poe * frame.pixel_angle() as f32);
-    let mut memo = Memo::new(&scene);
+    let memo = Memo::new(scene);
     let mut out = Vec::new();
     for y in 0..cam.height {
         for x in 0..cam.width {
             let ray = frame.ray(x, y);
-            if let Some(h) = tracer.trace(&ray, &mut memo) {
+            if let Some(h) = tracer.trace(&ray, &memo) {
                 out.push((ray, h));
             }
         }
@@ -394,7 +394,7 @@ fn ambient_occlusion_rays_never_meet_the_voxel_they_leave() {
     let n = 16;
     let ao = Tracer::new(&scene, &cache, ao_lod_c(n));
     let reach = (0..3).map(|k| hi[k] - lo[k]).fold(0f32, f32::max) * 0.3;
-    let mut memo = Memo::new(&scene);
+    let memo = Memo::new(&scene);
     let (mut sources, mut met) = (0, 0);
     for (ray, hit) in hits_of(&scene, &cache, &cam, 6.0) {
         if matches!(hit.surface, Surface::Triangle { .. }) {
@@ -407,7 +407,7 @@ fn ambient_occlusion_rays_never_meet_the_voxel_they_leave() {
         for i in 0..n {
             let d = cosine_hemisphere(nrm, point(i, n, hash(sources, 0, 0, Stream::Occlusion)));
             let r = Ray::new(from.spawn(d), d);
-            let Some(h) = ao.trace_to(&r, reach, &mut memo) else {
+            let Some(h) = ao.trace_to(&r, reach, &memo) else {
                 continue;
             };
             met += 1;
@@ -508,7 +508,7 @@ fn one_sample_per_pixel_is_the_default_image_and_more_average_stratified_rays() 
     // The colour is the mean of four rays through stratified points of the pixel.
     let frame = cam.frame().unwrap();
     let tracer = Tracer::new(&scene, &cache, 0.0);
-    let mut memo = Memo::new(&scene);
+    let memo = Memo::new(&scene);
     let materials = &scene.metadata().materials;
     let mut differ = 0;
     for y in 0..30 {
@@ -518,7 +518,7 @@ fn one_sample_per_pixel_is_the_default_image_and_more_average_stratified_rays() 
                 let [ox, oy] = pixel_offset(x, y, k, 4);
                 assert!((0.0..1.0).contains(&ox) && (0.0..1.0).contains(&oy));
                 let r = frame.ray_at(f64::from(x) + ox, f64::from(y) + oy);
-                let c = match tracer.trace(&r, &mut memo) {
+                let c = match tracer.trace(&r, &memo) {
                     Some(h) => shade(&h, &r, materials),
                     None => RenderOptions::DEFAULT.background,
                 };
