@@ -684,3 +684,60 @@ fn coplanar_duplicates_resolve_to_the_same_triangle_every_run() {
         "a tie resolved differently between runs"
     );
 }
+
+#[test]
+fn a_voxel_is_chosen_only_when_its_projected_radius_is_within_the_poe() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Arc::new(Scene::open(&common::mandelbulb(dir.path(), 20_000)).unwrap());
+    let cache = BlockingCache::new(Arc::clone(&scene), 256 << 20);
+    let (lo, hi) = scene_bounds(&scene);
+    let memo = Memo::new(&scene);
+    for (eye, fov_y) in [([0.3, 0.8, 3.5], 45.0), ([0.1, 0.2, 1.6], 60.0)] {
+        let cam = Camera {
+            eye,
+            look_at: [0.0; 3],
+            up: [0.0, 1.0, 0.0],
+            fov_y,
+            width: 160,
+            height: 120,
+        };
+        let frame = cam.frame().unwrap();
+        let mut fewer = 0;
+        for poe in [0.0f32, 0.5, 2.0, 8.0, 32.0] {
+            let c = poe * frame.pixel_angle() as f32;
+            let tracer = Tracer::new(&scene, &cache, c);
+            let (mut voxels, mut hits) = (0, 0);
+            for y in 0..cam.height {
+                for x in 0..cam.width {
+                    let Some(h) = tracer.trace(&frame.ray(x, y), &memo) else {
+                        continue;
+                    };
+                    hits += 1;
+                    if matches!(h.surface, oocfmt_trace::traverse::Surface::Triangle { .. }) {
+                        continue;
+                    }
+                    voxels += 1;
+                    // The voxel's radius in pixels at its distance.
+                    assert!(
+                        h.radius <= h.t * c,
+                        "poe {poe}: a voxel of radius {} at distance {} is {} pixels",
+                        h.radius,
+                        h.t,
+                        h.radius / (h.t * frame.pixel_angle() as f32)
+                    );
+                }
+            }
+            assert!(hits > 1_000, "the view sees the model ({lo:?} .. {hi:?})");
+            if poe == 0.0 {
+                assert_eq!(voxels, 0, "a voxel at poe 0");
+            }
+            // A larger PoE lets a ray stop at the same LOD node or an earlier one.
+            assert!(
+                voxels >= fewer,
+                "poe {poe}: {voxels} voxels, fewer than {fewer}"
+            );
+            fewer = voxels;
+        }
+        assert!(fewer > 0, "no voxel even at poe 32");
+    }
+}
