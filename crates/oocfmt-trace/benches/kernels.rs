@@ -1,6 +1,6 @@
 //! Tracer kernels: ray/triangle, ray/box, primary rays through the LOD traversal of a small
-//! converted Mandelbulb (a warm blocking cache, full detail and PoE 2), and the decode of its
-//! treelet and triangle blocks into the traversal's shapes. The format's kernels (checksums,
+//! converted Mandelbulb (one thread, a warm blocking cache, full detail and PoE 2), and the
+//! decode of its largest treelet and triangle blocks into the traversal's shapes. The format's kernels (checksums,
 //! LZ4 and zstd block decode, record parsing, voxel samples) are in `oocfmt`'s `kernels`
 //! bench. `cargo bench -p oocfmt-trace --bench kernels` (add `-- --quick` for a short run).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -55,7 +55,9 @@ fn scene(dir: &Path) -> Arc<Scene> {
 fn traversal(c: &mut Criterion, scene: &Arc<Scene>) {
     let m = scene.metadata();
     let (w, h) = (32, 24);
-    let camera = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, w, h);
+    let mut camera = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, w, h);
+    // Zoomed in on the middle, so nearly every ray meets the surface.
+    camera.fov_y /= 3.0;
     let frame = camera.frame().unwrap();
     let rays: Vec<Ray> = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
@@ -85,15 +87,17 @@ fn traversal(c: &mut Criterion, scene: &Arc<Scene>) {
 
 fn block_decode(c: &mut Criterion, scene: &Scene) {
     let r = scene.reader();
-    let first = |kind: BlockKind| {
+    // The largest block of each kind: a full one, not the small top of the tree.
+    let largest = |kind: BlockKind| {
         (0u32..)
             .zip(r.entries())
-            .find(|(_, e)| e.kind == kind)
+            .filter(|(_, e)| e.kind == kind)
+            .max_by_key(|(_, e)| e.raw_length)
             .map(|(id, _)| r.read_block(id).unwrap())
             .unwrap()
     };
-    let treelets = first(BlockKind::Treelet);
-    let triangles = first(BlockKind::Triangle);
+    let treelets = largest(BlockKind::Treelet);
+    let triangles = largest(BlockKind::Triangle);
     let attrs = scene.metadata().schema.triangle_attributes();
     let mut g = c.benchmark_group("block decode (of the decompressed block)");
     g.throughput(Throughput::Bytes(treelets.data.len() as u64));
