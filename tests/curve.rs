@@ -171,4 +171,8 @@ fn curve_rejects_bad_flags() {
     }
     let o = oocfmt(&["curve", "missing.oocf"], d);
     assert_eq!(o.status.code(), Some(2));
+    // mmap maps uncompressed containers only; the default codec compresses.
+    let o = oocfmt(&["curve", "mb.oocf", "--cache", "mmap", "--size", "8x8"], d);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--codec none"));
 }

@@ -35,7 +35,7 @@ pub struct Args {
     /// The container
     pub model: PathBuf,
     /// Pixels-of-error values to measure, comma-separated, each finite, >= 0 and listed once
-    #[arg(long, default_value = "0,0.5,1,2,4,8,16", value_parser = parse_poes)]
+    #[arg(long, default_value = "0,0.5,1,2,4,8,16", value_parser = parse_poes, allow_hyphen_values = true)]
     pub poe: PoeList,
     /// Caches to measure, comma-separated (one series each): async, blocking, mmap (mmap
     /// needs a container converted with `--codec none`)
@@ -99,6 +99,9 @@ pub struct Args {
 pub struct PoeList(pub Vec<f32>);
 
 fn parse_poes(s: &str) -> Result<PoeList, String> {
+    if s.trim().is_empty() {
+        return Err("expected a comma-separated list of PoEs, e.g. 0,1,4".to_string());
+    }
     let mut v: Vec<f32> = Vec::new();
     for part in s.split(',') {
         let p = part.trim();
@@ -108,6 +111,8 @@ fn parse_poes(s: &str) -> Result<PoeList, String> {
         if !(x.is_finite() && x >= 0.0) {
             return Err(format!("`{p}`: a PoE is a finite number >= 0"));
         }
+        // -0 is 0, listed and written as such.
+        let x = if x == 0.0 { 0.0 } else { x };
         if v.contains(&x) {
             return Err(format!("`{p}` is listed twice"));
         }
@@ -202,11 +207,15 @@ pub fn run(a: &Args) -> CliResult {
             &scene, a.size, a.eye, a.look_at, a.up, a.fov_y,
         )],
     };
+    let budget = usize::try_from(a.cache_mb << 20).unwrap_or(usize::MAX);
+    let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
+    if kinds.contains(&"mmap") {
+        // A container mmap cannot map is refused before any rendering.
+        Cache::of_kind(&a.model, None, "mmap", budget, fetchers, a.read_ahead)?;
+    }
     let (references, reference) = render_reference(&scene, &cameras)?;
     let mut rows = Vec::new();
     let mut shots = Vec::new();
-    let budget = usize::try_from(a.cache_mb << 20).unwrap_or(usize::MAX);
-    let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
     for kind in &kinds {
         for &poe in &a.poe.0 {
             // A fresh cache per measurement, so each working set is the PoE's own.
