@@ -13,8 +13,9 @@ use oocfmt_build::convert::{convert, ConvertOptions};
 use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
 use oocfmt_build::kdtree::KdBuildOptions;
 use oocfmt_build::layout::LayoutOptions;
+use oocfmt_trace::compare::compare;
 use oocfmt_trace::output::write_png;
-use oocfmt_trace::{render, BlockingCache, Camera, FrameStats, Image, RenderOptions, Scene};
+use oocfmt_trace::{render, BlockingCache, Camera, FrameStats, RenderOptions, Scene};
 
 use crate::error::{CliError, CliResult};
 use crate::render::cli_error;
@@ -180,13 +181,15 @@ fn render_both(model: &Path, out: &Path, width: u32, poe: f32) -> Result<(), Cli
         images.push(image);
     }
     if let [reference, coarse] = &images[..] {
-        let e = image_error(reference, coarse);
+        let e = compare(reference, coarse, 8).map_err(|e| CliError::Build(e.to_string()))?;
+        let pixels = reference.depth.len().max(1) as f64;
         println!(
-            "error      --poe {poe} against --poe 0: RMSE {:.2} of 255, PSNR {:.1} dB, {:.2} % of pixels within 8 levels per channel, {:.3} % of hits and misses differ",
+            "error      --poe {poe} against --poe 0: RMSE {:.2} of 255, PSNR {:.1} dB, SSIM {:.4}, {:.2} % of pixels within 8 levels per channel, {:.3} % of hits and misses differ",
             e.rmse,
-            e.psnr,
-            100.0 * e.within,
-            100.0 * e.coverage_differs
+            e.psnr_db,
+            e.ssim,
+            100.0 * e.within_tolerance,
+            100.0 * e.depth.hit_miss_differ as f64 / pixels
         );
     }
     Ok(())
@@ -207,47 +210,4 @@ fn print_frame(png: &Path, s: &FrameStats) {
         s.cache.bytes_resident as f64 / 1048576.0,
         s.cache.blocks_loaded
     );
-}
-
-struct ImageError {
-    rmse: f64,
-    psnr: f64,
-    /// Share of pixels whose channels all differ by at most 8 of 255.
-    within: f64,
-    /// Share of pixels that hit in one image and miss in the other.
-    coverage_differs: f64,
-}
-
-fn image_error(a: &Image, b: &Image) -> ImageError {
-    let pixels = a.rgb.len() / 3;
-    let (mut sq, mut within) = (0.0f64, 0usize);
-    for (pa, pb) in a.rgb.chunks_exact(3).zip(b.rgb.chunks_exact(3)) {
-        let mut worst = 0;
-        for (x, y) in pa.iter().zip(pb) {
-            let d = i32::from(*x) - i32::from(*y);
-            sq += f64::from(d * d);
-            worst = worst.max(d.abs());
-        }
-        if worst <= 8 {
-            within += 1;
-        }
-    }
-    let coverage = a
-        .depth
-        .iter()
-        .zip(&b.depth)
-        .filter(|(x, y)| x.is_finite() != y.is_finite())
-        .count();
-    let n = pixels.max(1) as f64;
-    let rmse = (sq / (3.0 * n)).sqrt();
-    ImageError {
-        rmse,
-        psnr: if rmse > 0.0 {
-            20.0 * (255.0 / rmse).log10()
-        } else {
-            f64::INFINITY
-        },
-        within: within as f64 / n,
-        coverage_differs: coverage as f64 / n,
-    }
 }

@@ -4,6 +4,7 @@
 //! error stopped the command; 2 the command could not run (bad usage, I/O error).
 
 mod convert;
+mod curve;
 mod demo;
 mod error;
 mod export;
@@ -49,6 +50,8 @@ enum Command {
     Demo(demo::Args),
     /// Ray trace one frame of a container to PNG (LOD by pixels of error)
     Render(render::Args),
+    /// Speed against error: render a view at a list of PoEs, compare each with full detail
+    Curve(curve::Args),
 }
 
 fn main() -> ExitCode {
@@ -68,6 +71,7 @@ fn main() -> ExitCode {
         Command::Gen(a) => gen::run(&a),
         Command::Demo(a) => demo::run(&a),
         Command::Render(a) => render::run(&a),
+        Command::Curve(a) => curve::run(&a),
     };
     match result {
         Ok(code) => ExitCode::from(code),

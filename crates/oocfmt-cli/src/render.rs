@@ -112,7 +112,7 @@ fn parse_distance(s: &str) -> Result<f32, String> {
 }
 
 /// `WIDTHxHEIGHT`, each 1 ..= 16384.
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
+pub(crate) fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let bad = || format!("`{s}`: expected WIDTHxHEIGHT, each 1 to 16384, e.g. 1024x768");
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     let w: u32 = w.trim().parse().map_err(|_| bad())?;
@@ -124,7 +124,7 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
 }
 
 /// `X,Y,Z`, finite numbers.
-fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+pub(crate) fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
     let bad = || format!("`{s}`: expected three finite numbers X,Y,Z");
     let parts: Vec<f64> = s
         .split(',')
@@ -154,7 +154,7 @@ pub(crate) fn cli_error(e: TraceError) -> CliError {
 }
 
 /// The cache a render uses, kept by kind for what only one kind does.
-enum Cache {
+pub(crate) enum Cache {
     Async(AsyncCache),
     Blocking(BlockingCache),
     Mmap(MmapCache),
@@ -162,27 +162,48 @@ enum Cache {
 
 impl Cache {
     fn open(a: &Args) -> Result<(Arc<Scene>, Cache), CliError> {
+        let scene = if a.cache == "mmap" {
+            None
+        } else {
+            Some(Arc::new(Scene::open(&a.model).map_err(cli_error)?))
+        };
         let budget = usize::try_from(a.cache_mb << 20).unwrap_or(usize::MAX);
-        if a.cache == "mmap" {
-            let c = MmapCache::open(&a.model, budget).map_err(cli_error)?;
+        let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
+        Cache::of_kind(&a.model, scene, &a.cache, budget, fetchers, a.read_ahead)
+    }
+
+    /// A cache of `kind` (`async`, `blocking` or `mmap`) over `scene`, or over the container
+    /// at `model` opened anew when there is no scene or the kind is `mmap` (which maps it).
+    pub(crate) fn of_kind(
+        model: &Path,
+        scene: Option<Arc<Scene>>,
+        kind: &str,
+        budget: usize,
+        fetchers: usize,
+        read_ahead: u8,
+    ) -> Result<(Arc<Scene>, Cache), CliError> {
+        if kind == "mmap" {
+            let c = MmapCache::open(model, budget).map_err(cli_error)?;
             return Ok((Arc::clone(c.scene()), Cache::Mmap(c)));
         }
-        let scene = Arc::new(Scene::open(&a.model).map_err(cli_error)?);
-        let cache = if a.cache == "blocking" {
+        let scene = match scene {
+            Some(s) => s,
+            None => Arc::new(Scene::open(model).map_err(cli_error)?),
+        };
+        let cache = if kind == "blocking" {
             Cache::Blocking(BlockingCache::new(Arc::clone(&scene), budget))
         } else {
-            let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
             Cache::Async(AsyncCache::with_read_ahead(
                 Arc::clone(&scene),
                 budget,
                 fetchers,
-                a.read_ahead,
+                read_ahead,
             ))
         };
         Ok((scene, cache))
     }
 
-    fn get(&self) -> &dyn BlockCache {
+    pub(crate) fn get(&self) -> &dyn BlockCache {
         match self {
             Cache::Async(c) => c,
             Cache::Blocking(c) => c,
@@ -253,7 +274,17 @@ impl FrameFigures {
 
 /// Renders one frame and runs the cache's step after it; the stats carry the cache's figures
 /// after the step.
-fn frame(
+pub(crate) fn frame(
+    scene: &Scene,
+    cache: &dyn BlockCache,
+    camera: &Camera,
+    opts: &RenderOptions,
+) -> Result<(Image, FrameStats), CliError> {
+    frame_and_step(scene, cache, camera, opts).map(|(image, stats, _)| (image, stats))
+}
+
+/// [`frame`], and the milliseconds of the cache's step.
+fn frame_and_step(
     scene: &Scene,
     cache: &dyn BlockCache,
     camera: &Camera,
@@ -267,10 +298,40 @@ fn frame(
     Ok((image, stats, step_ms))
 }
 
+/// Renders a still view until a frame finds every block it wants: with the async cache,
+/// letting the fetchers finish between frames (at most [`MAX_SETTLE_FRAMES`], warning when
+/// that was not enough); with the others, one frame. Returns the last frame and the number of
+/// frames rendered.
+pub(crate) fn settle(
+    scene: &Scene,
+    cache: &Cache,
+    camera: &Camera,
+    opts: &RenderOptions,
+) -> Result<((Image, FrameStats), u32), CliError> {
+    let c = cache.get();
+    let mut result = frame(scene, c, camera, opts)?;
+    let mut settle_frames = 1;
+    if let Cache::Async(ac) = cache {
+        while result.1.cache.blocks_wanted_last_frame > 0 && settle_frames < MAX_SETTLE_FRAMES {
+            ac.wait_for_fetchers();
+            c.end_frame();
+            result = frame(scene, c, camera, opts)?;
+            settle_frames += 1;
+        }
+        if result.1.cache.blocks_wanted_last_frame > 0 {
+            eprintln!(
+                "oocfmt: warning: after {settle_frames} frames the view still wants blocks \
+                 (is --cache-mb too small for it?); the image is coarser where they are missing"
+            );
+        }
+    }
+    Ok((result, settle_frames))
+}
+
 /// The most frames a still image in async mode takes to load what it wants.
 const MAX_SETTLE_FRAMES: u32 = 1000;
 
-fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), CliError> {
+pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), CliError> {
     let json = to_json(value)?;
     std::fs::write(path, json + "\n").map_err(|source| CliError::Io {
         path: path.display().to_string(),
@@ -278,13 +339,60 @@ fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), CliError> {
     })
 }
 
-pub fn run(a: &Args) -> CliResult {
-    if let Some(n) = a.threads {
+/// Sets the render threads (`--threads`; None: all cores).
+pub(crate) fn use_threads(threads: Option<usize>) -> Result<(), CliError> {
+    if let Some(n) = threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build_global()
             .map_err(|e| CliError::Usage(format!("--threads {n}: {e}")))?;
     }
+    Ok(())
+}
+
+/// Cameras in world coordinates (a walkthrough's) moved into the scene's stored coordinates.
+pub(crate) fn stored_cameras(scene: &Scene, cameras: Vec<Camera>) -> Vec<Camera> {
+    let origin = scene.metadata().scene.origin;
+    let stored = |p: [f64; 3]| [0, 1, 2].map(|k| p[k] - origin[k]);
+    cameras
+        .into_iter()
+        .map(|c| Camera {
+            eye: stored(c.eye),
+            look_at: stored(c.look_at),
+            ..c
+        })
+        .collect()
+}
+
+/// The camera of a still view in stored coordinates: framing the whole model, with the eye,
+/// look-at point (world coordinates) and up direction given on the command line.
+pub(crate) fn still_camera(
+    scene: &Scene,
+    (w, h): (u32, u32),
+    eye: Option<[f64; 3]>,
+    look_at: Option<[f64; 3]>,
+    up: Option<[f64; 3]>,
+    fov_y: f64,
+) -> Camera {
+    let m = scene.metadata();
+    let origin = m.scene.origin;
+    let stored = |p: [f64; 3]| [0, 1, 2].map(|k| p[k] - origin[k]);
+    let mut camera = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, w, h);
+    if let Some(e) = eye {
+        camera.eye = stored(e);
+    }
+    if let Some(l) = look_at {
+        camera.look_at = stored(l);
+    }
+    if let Some(u) = up {
+        camera.up = u;
+    }
+    camera.fov_y = fov_y;
+    camera
+}
+
+pub fn run(a: &Args) -> CliResult {
+    use_threads(a.threads)?;
     let (w, h) = a.size;
     // Read the path before the model: a bad path file is reported without loading anything.
     let path_cameras = match &a.path {
@@ -292,8 +400,7 @@ pub fn run(a: &Args) -> CliResult {
         None => None,
     };
     let (scene, cache) = Cache::open(a)?;
-    let m = scene.metadata();
-    let origin = m.scene.origin;
+    let origin = scene.metadata().scene.origin;
     let stored = |p: [f64; 3]| [0, 1, 2].map(|k| p[k] - origin[k]);
     let opts = RenderOptions {
         poe: a.poe,
@@ -305,50 +412,16 @@ pub fn run(a: &Args) -> CliResult {
         ..RenderOptions::default()
     };
     if let Some(cameras) = path_cameras {
-        let cameras: Vec<Camera> = cameras
-            .into_iter()
-            .map(|c| Camera {
-                eye: stored(c.eye),
-                look_at: stored(c.look_at),
-                ..c
-            })
-            .collect();
+        let cameras = stored_cameras(&scene, cameras);
         return walkthrough(a, &scene, cache.get(), &cameras, &opts);
     }
-    let mut camera = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, w, h);
-    if let Some(e) = a.eye {
-        camera.eye = stored(e);
-    }
-    if let Some(l) = a.look_at {
-        camera.look_at = stored(l);
-    }
-    if let Some(u) = a.up {
-        camera.up = u;
-    }
-    camera.fov_y = a.fov_y;
+    let camera = still_camera(&scene, a.size, a.eye, a.look_at, a.up, a.fov_y);
     let c = cache.get();
-    let mut result = frame(&scene, c, &camera, &opts)?;
-    let mut settle_frames = 1;
-    if let Cache::Async(ac) = &cache {
-        // A still image: render until a frame finds every block it wants, letting the
-        // fetchers finish between frames.
-        while result.1.cache.blocks_wanted_last_frame > 0 && settle_frames < MAX_SETTLE_FRAMES {
-            ac.wait_for_fetchers();
-            c.end_frame();
-            result = frame(&scene, c, &camera, &opts)?;
-            settle_frames += 1;
-        }
-        if result.1.cache.blocks_wanted_last_frame > 0 {
-            eprintln!(
-                "oocfmt: warning: after {settle_frames} frames the view still wants blocks \
-                 (is --cache-mb too small for it?); the image is coarser where they are missing"
-            );
-        }
-    }
+    let (mut result, settle_frames) = settle(&scene, &cache, &camera, &opts)?;
     for _ in 1..a.repeat {
         result = frame(&scene, c, &camera, &opts)?;
     }
-    let (image, stats, _) = result;
+    let (image, stats) = result;
     write_png(&a.output, image.width, image.height, &image.rgb).map_err(cli_error)?;
     if let Some(d) = &a.depth_out {
         write_pfm(d, image.width, image.height, &image.depth).map_err(cli_error)?;
@@ -418,7 +491,7 @@ fn walkthrough(
     let mut before = cache.stats();
     let mut reported_missing = 0;
     for (i, camera) in cameras.iter().enumerate() {
-        let (image, stats, step_ms) = frame(scene, cache, camera, opts)?;
+        let (image, stats, step_ms) = frame_and_step(scene, cache, camera, opts)?;
         let file = walk::frame_file(&a.output, i);
         write_png(&file, image.width, image.height, &image.rgb).map_err(cli_error)?;
         if let Some(d) = &a.depth_out {

@@ -6,6 +6,7 @@
 pub mod blocks;
 pub mod cache;
 pub mod camera;
+pub mod compare;
 pub mod error;
 pub mod intersect;
 pub mod light;

@@ -1,0 +1,437 @@
+//! `oocfmt curve`: speed against error. Renders one view (or a walkthrough) at a list of
+//! pixels-of-error values with each asked-for cache, warm, and compares every image with the
+//! full-detail reference (PoE 0, blocking cache, everything loaded): a table, JSON, a plot of
+//! frame time against error and a contact sheet of the images.
+
+mod plot;
+mod sheet;
+mod text;
+mod touched;
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use serde::Serialize;
+
+use oocfmt_trace::compare::{Accumulator, ImageError};
+use oocfmt_trace::render::Endings;
+use oocfmt_trace::{BlockingCache, Camera, Image, RenderOptions, Scene};
+
+use crate::error::{CliError, CliResult};
+use crate::render::{
+    cli_error, frame, parse_size, parse_vec3, settle, still_camera, stored_cameras, use_threads,
+    write_json, Cache,
+};
+use touched::Touched;
+
+/// The JSON schema of `--json`.
+pub const SCHEMA: &str = "oocfmt-curve/1";
+/// The level-of-detail representation measured (R-LOD planes are another, later).
+const LOD: &str = "voxel";
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The container
+    pub model: PathBuf,
+    /// Pixels-of-error values to measure, comma-separated, each finite, >= 0 and listed once
+    #[arg(long, default_value = "0,0.5,1,2,4,8,16", value_parser = parse_poes, allow_hyphen_values = true)]
+    pub poe: PoeList,
+    /// Caches to measure, comma-separated (one series each): async, blocking, mmap (mmap
+    /// needs a container converted with `--codec none`)
+    #[arg(long, default_value = "async", value_delimiter = ',', value_parser = ["async", "blocking", "mmap"])]
+    pub cache: Vec<String>,
+    /// Image size, WIDTHxHEIGHT
+    #[arg(long, default_value = "1024x768", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Eye position X,Y,Z in world coordinates (default: framing the whole model)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<[f64; 3]>,
+    /// The point looked at, X,Y,Z in world coordinates (default: the model's centre)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub look_at: Option<[f64; 3]>,
+    /// Up direction X,Y,Z
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<[f64; 3]>,
+    /// Vertical field of view in degrees
+    #[arg(long, default_value_t = oocfmt_trace::camera::DEFAULT_FOV_Y)]
+    pub fov_y: f64,
+    /// A walkthrough (as for `render --path`) instead of one view: every figure is over all
+    /// its frames (times per frame, the error as of one image, SSIM the frames' mean); the
+    /// contact sheet shows the first frame. Every frame's images are kept in memory.
+    #[arg(long)]
+    pub path: Option<PathBuf>,
+    /// Timed frames (walkthrough: passes) per PoE once the cache is warm; the median is
+    /// reported
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub repeat: u32,
+    /// A pixel is "within tolerance" when its three channels all differ from the reference's
+    /// by at most this many levels of 255
+    #[arg(long, default_value_t = 8)]
+    pub tolerance: u8,
+    /// Memory for decoded blocks per cache, in MiB (the reference's cache is unbounded)
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
+    pub cache_mb: u64,
+    /// Fetcher threads of the async cache
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..=64))]
+    pub fetchers: u64,
+    /// Async cache: block levels read ahead (as for `render`)
+    #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_READ_AHEAD, value_parser = clap::value_parser!(u8).range(0..=16))]
+    pub read_ahead: u8,
+    /// Write the figures as JSON (schema `oocfmt-curve/1`) to this file
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Plot frame time against RMSE, one point per PoE and one series per cache: FILE.svg or
+    /// FILE.png
+    #[arg(long, value_parser = parse_plot_path)]
+    pub plot: Option<PathBuf>,
+    /// Write a contact sheet PNG: the reference and every PoE's image side by side, labelled,
+    /// one row per cache
+    #[arg(long)]
+    pub sheet: Option<PathBuf>,
+    /// Render threads (default: all cores)
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// The PoE values of `--poe`.
+#[derive(Clone, Debug)]
+pub struct PoeList(pub Vec<f32>);
+
+fn parse_poes(s: &str) -> Result<PoeList, String> {
+    if s.trim().is_empty() {
+        return Err("expected a comma-separated list of PoEs, e.g. 0,1,4".to_string());
+    }
+    let mut v: Vec<f32> = Vec::new();
+    for part in s.split(',') {
+        let p = part.trim();
+        let x: f32 = p
+            .parse()
+            .map_err(|_| format!("`{p}`: expected a number (a comma-separated list of PoEs)"))?;
+        if !(x.is_finite() && x >= 0.0) {
+            return Err(format!("`{p}`: a PoE is a finite number >= 0"));
+        }
+        // -0 is 0, listed and written as such.
+        let x = if x == 0.0 { 0.0 } else { x };
+        if v.contains(&x) {
+            return Err(format!("`{p}` is listed twice"));
+        }
+        v.push(x);
+    }
+    Ok(PoeList(v))
+}
+
+fn parse_plot_path(s: &str) -> Result<PathBuf, String> {
+    let p = PathBuf::from(s);
+    match plot::Format::of(&p) {
+        Some(_) => Ok(p),
+        None => Err(format!(
+            "`{s}`: expected a file name ending in .svg or .png"
+        )),
+    }
+}
+
+/// One (cache, PoE) measurement.
+#[derive(Serialize)]
+pub struct Row {
+    pub cache: String,
+    pub lod: &'static str,
+    pub poe: f32,
+    /// Frames rendered before the timed ones: until the view (every camera) found every
+    /// block it wants.
+    pub settle_frames: u32,
+    /// Median over the timed repeats of the time per frame.
+    pub ms: f64,
+    pub rays_per_second: f64,
+    pub nodes_per_ray: f64,
+    /// Decoded bytes resident after the last timed frame.
+    pub working_set_mb: f64,
+    /// Distinct blocks one warm frame (walkthrough: one pass) looked up.
+    pub blocks_touched: u64,
+    /// How primary rays ended, over the frames of one pass.
+    pub primary: Endings,
+    pub error: ImageError,
+}
+
+#[derive(Serialize)]
+struct Curve<'a> {
+    schema: &'static str,
+    model: String,
+    width: u32,
+    height: u32,
+    /// Cameras per measurement: 1, or the walkthrough's frames.
+    frames: usize,
+    repeat: u32,
+    threads: usize,
+    cache_mb: u64,
+    /// The reference: PoE 0, blocking cache without a budget.
+    reference: Reference,
+    rows: &'a [Row],
+}
+
+#[derive(Serialize)]
+struct Reference {
+    cache: &'static str,
+    poe: f32,
+    ms: f64,
+    primary: Endings,
+}
+
+/// A measurement's images of the first camera, for the sheet.
+pub struct Shot {
+    pub cache: String,
+    pub poe: f32,
+    pub ms: f64,
+    pub psnr_db: f64,
+    pub image: Image,
+}
+
+pub fn run(a: &Args) -> CliResult {
+    use_threads(a.threads)?;
+    let mut kinds: Vec<&str> = Vec::new();
+    for k in &a.cache {
+        if kinds.contains(&k.as_str()) {
+            return Err(CliError::Usage(format!("--cache: `{k}` is listed twice")));
+        }
+        kinds.push(k);
+    }
+    let (w, h) = a.size;
+    let path_cameras = match &a.path {
+        Some(p) => Some(oocfmt_trace::walk::read_path(p, w, h).map_err(cli_error)?),
+        None => None,
+    };
+    let scene = Arc::new(Scene::open(&a.model).map_err(cli_error)?);
+    let cameras = match path_cameras {
+        Some(c) => stored_cameras(&scene, c),
+        None => vec![still_camera(
+            &scene, a.size, a.eye, a.look_at, a.up, a.fov_y,
+        )],
+    };
+    let budget = usize::try_from(a.cache_mb << 20).unwrap_or(usize::MAX);
+    let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
+    if kinds.contains(&"mmap") {
+        // A container mmap cannot map is refused before any rendering.
+        Cache::of_kind(&a.model, None, "mmap", budget, fetchers, a.read_ahead)?;
+    }
+    let (references, reference) = render_reference(&scene, &cameras)?;
+    let mut rows = Vec::new();
+    let mut shots = Vec::new();
+    for kind in &kinds {
+        for &poe in &a.poe.0 {
+            // A fresh cache per measurement, so each working set is the PoE's own.
+            let (_, cache) = Cache::of_kind(
+                &a.model,
+                Some(Arc::clone(&scene)),
+                kind,
+                budget,
+                fetchers,
+                a.read_ahead,
+            )?;
+            let (row, image) = measure(a, &scene, &cache, kind, poe, &cameras, &references)?;
+            shots.push(Shot {
+                cache: row.cache.clone(),
+                poe,
+                ms: row.ms,
+                psnr_db: row.error.psnr_db,
+                image,
+            });
+            rows.push(row);
+        }
+    }
+    print_table(a, &cameras, &reference, &rows);
+    if let Some(p) = &a.json {
+        let curve = Curve {
+            schema: SCHEMA,
+            model: a.model.display().to_string(),
+            width: w,
+            height: h,
+            frames: cameras.len(),
+            repeat: a.repeat,
+            threads: rayon::current_num_threads(),
+            cache_mb: a.cache_mb,
+            reference,
+            rows: &rows,
+        };
+        write_json(p, &curve)?;
+    }
+    if let Some(p) = &a.plot {
+        plot::write(p, &a.model, &rows)?;
+    }
+    if let Some(p) = &a.sheet {
+        if let Some(r) = references.first() {
+            sheet::write(p, r, &shots)?;
+        }
+    }
+    Ok(0)
+}
+
+/// The full-detail images of `cameras`: PoE 0 with a blocking cache that keeps every block.
+fn render_reference(
+    scene: &Arc<Scene>,
+    cameras: &[Camera],
+) -> Result<(Vec<Image>, Reference), CliError> {
+    let cache = BlockingCache::new(Arc::clone(scene), usize::MAX);
+    let opts = RenderOptions::default();
+    let mut images = Vec::with_capacity(cameras.len());
+    let mut reference = Reference {
+        cache: "blocking",
+        poe: 0.0,
+        ms: 0.0,
+        primary: Endings::default(),
+    };
+    for camera in cameras {
+        let (image, stats) = frame(scene, &cache, camera, &opts)?;
+        add_endings(&mut reference.primary, &stats.primary);
+        reference.ms += stats.ms;
+        images.push(image);
+    }
+    Ok((images, reference))
+}
+
+fn add_endings(sum: &mut Endings, e: &Endings) {
+    sum.triangle += e.triangle;
+    sum.voxel += e.voxel;
+    sum.proxy += e.proxy;
+    sum.miss += e.miss;
+}
+
+/// Warms `cache` on every camera at `poe`, renders one recorded pass for the blocks touched,
+/// then `repeat` timed passes; returns the figures and the first camera's last image.
+fn measure(
+    a: &Args,
+    scene: &Scene,
+    cache: &Cache,
+    kind: &str,
+    poe: f32,
+    cameras: &[Camera],
+    references: &[Image],
+) -> Result<(Row, Image), CliError> {
+    let opts = RenderOptions {
+        poe,
+        ..RenderOptions::default()
+    };
+    let mut settle_frames = 0;
+    for camera in cameras {
+        settle_frames += settle(scene, cache, camera, &opts)?.1;
+    }
+    let touched = Touched::new(cache.get());
+    for camera in cameras {
+        frame(scene, &touched, camera, &opts)?;
+    }
+    let blocks_touched = touched.count();
+    let mut pass_ms = Vec::with_capacity(a.repeat as usize);
+    let mut last = Vec::new();
+    let (mut rays, mut nodes, mut primary) = (0u64, 0u64, Endings::default());
+    let mut bytes_resident = 0;
+    for _ in 0..a.repeat {
+        let (mut ms, mut images) = (0.0, Vec::with_capacity(cameras.len()));
+        (rays, nodes, primary) = (0, 0, Endings::default());
+        for camera in cameras {
+            let (image, stats) = frame(scene, cache.get(), camera, &opts)?;
+            ms += stats.ms;
+            rays += stats.rays;
+            nodes += stats.nodes_visited;
+            add_endings(&mut primary, &stats.primary);
+            bytes_resident = stats.cache.bytes_resident;
+            images.push(image);
+        }
+        pass_ms.push(ms);
+        last = images;
+    }
+    for b in &cache.get().stats().missing_blocks {
+        eprintln!("oocfmt: warning: block {} is missing: {}", b.id, b.error);
+    }
+    let mut acc = Accumulator::new(a.tolerance);
+    for (r, t) in references.iter().zip(&last) {
+        acc.add(r, t).map_err(|e| CliError::Usage(e.to_string()))?;
+    }
+    pass_ms.sort_by(f64::total_cmp);
+    let median_pass = oocfmt_trace::compare::median_sorted(&pass_ms);
+    let frames = cameras.len().max(1) as f64;
+    let row = Row {
+        cache: kind.to_string(),
+        lod: LOD,
+        poe,
+        settle_frames,
+        ms: median_pass / frames,
+        rays_per_second: rays as f64 / (median_pass / 1e3).max(1e-9),
+        nodes_per_ray: nodes as f64 / rays.max(1) as f64,
+        working_set_mb: bytes_resident as f64 / 1048576.0,
+        blocks_touched,
+        primary,
+        error: acc.finish(),
+    };
+    let first = last
+        .into_iter()
+        .next()
+        .ok_or_else(|| CliError::Usage("the walkthrough has no frames".to_string()))?;
+    Ok((row, first))
+}
+
+/// A PSNR for people: `inf` for identical images.
+fn db(psnr: f64) -> String {
+    if psnr.is_finite() {
+        format!("{psnr:.1}")
+    } else {
+        "inf".to_string()
+    }
+}
+
+fn print_table(a: &Args, cameras: &[Camera], reference: &Reference, rows: &[Row]) {
+    // A closed stdout (`| head`) is not an error of the measurement: the files are written.
+    let mut out = std::io::stdout().lock();
+    let (w, h) = a.size;
+    let _ = writeln!(
+        out,
+        "{}: {w}x{h}, {} camera(s), {} threads; warm caches, median of {} timed frame(s); \
+         error against PoE 0 with a blocking cache ({:.1} ms cold); lod {LOD}",
+        a.model.display(),
+        cameras.len(),
+        rayon::current_num_threads(),
+        a.repeat,
+        reference.ms / cameras.len().max(1) as f64,
+    );
+    let _ = writeln!(
+        out,
+        "{:<8} {:>5} {:>9} {:>8} {:>9} {:>8} {:>7} {:>6} {:>6} {:>6} {:>6} {:>7} {:>6} {:>7} {:>7} {:>8} {:>9} {:>9}",
+        "cache", "poe", "ms", "Mrays/s", "nodes/ray", "WS MiB", "blocks", "tri%", "voxel%",
+        "proxy%", "miss%", "RMSE", "PSNR", "SSIM", format!("<={}%", a.tolerance), "hit/miss",
+        "depth med", "depth max"
+    );
+    for r in rows {
+        let p = &r.primary;
+        let n = (p.triangle + p.voxel + p.proxy + p.miss).max(1) as f64;
+        let pct = |x: u64| 100.0 * x as f64 / n;
+        let e = &r.error;
+        let _ = writeln!(
+            out,
+            "{:<8} {:>5} {:>9.2} {:>8.2} {:>9.1} {:>8.1} {:>7} {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>7.3} {:>6} {:>7.4} {:>7.2} {:>8} {:>9.2e} {:>9.2e}",
+            r.cache,
+            r.poe,
+            r.ms,
+            r.rays_per_second / 1e6,
+            r.nodes_per_ray,
+            r.working_set_mb,
+            r.blocks_touched,
+            pct(p.triangle),
+            pct(p.voxel),
+            pct(p.proxy),
+            pct(p.miss),
+            e.rmse,
+            db(e.psnr_db),
+            e.ssim,
+            100.0 * e.within_tolerance,
+            e.depth.hit_miss_differ,
+            e.depth.median_relative,
+            e.depth.max_relative,
+        );
+    }
+}
+
+/// The file name of `model` for titles.
+fn model_name(model: &Path) -> String {
+    model
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| model.display().to_string())
+}

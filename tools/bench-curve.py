@@ -1,0 +1,116 @@
+#!/usr/bin/env python3
+"""Speed against error: generates scenes, converts them and runs `oocfmt curve --json` on each,
+printing the README's Markdown table (per PoE: warm frame time and its ratio to PoE 0, rays per
+second, nodes per ray, working set, blocks touched, the share of rays ending on voxels, and the
+error against full detail). Writes each scene's plot and contact sheet beside its container.
+Timings are medians of `--repeat` warm frames; compare ratios within one run. The machine is
+printed first.
+
+    cargo build --release -p oocfmt-cli
+    python3 tools/bench-curve.py --scenes mandelbulb:1e6,cad:1e6 --dir /tmp/curve
+    python3 tools/bench-curve.py --scenes mandelbulb:1e7 --dir /tmp/curve --cache async,blocking
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BIN = os.path.join(ROOT, "target", "release", "oocfmt")
+
+
+def machine():
+    import platform
+
+    cpu = platform.processor() or "unknown CPU"
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} logical cores, {platform.system()} {platform.release()}"
+
+
+def run(args):
+    r = subprocess.run([BIN] + args, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"oocfmt {' '.join(args)} failed ({r.returncode}):\n{r.stdout}{r.stderr}")
+    return r.stdout
+
+
+def psnr(v):
+    return "inf" if v is None else f"{v:.1f}"
+
+
+def table(name, curve):
+    rows = curve["rows"]
+    print(f"\n{name}: {curve['width']}x{curve['height']}, {curve['threads']} threads, "
+          f"median of {curve['repeat']} warm frames")
+    print("| cache | PoE | frame ms | vs PoE 0 | Mrays/s | nodes/ray | working set | blocks "
+          "| voxel rays | RMSE | PSNR dB | SSIM | within 8 | hit/miss differ | depth err (median / max) |")
+    print("|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|")
+    base = {}
+    for r in rows:
+        if r["poe"] == 0:
+            base[r["cache"]] = r["ms"]
+    for r in rows:
+        p = r["primary"]
+        n = max(1, p["triangle"] + p["voxel"] + p["proxy"] + p["miss"])
+        hits = max(1, p["triangle"] + p["voxel"] + p["proxy"])
+        e = r["error"]
+        d = e["depth"]
+        ratio = base.get(r["cache"], 0) / r["ms"] if r["ms"] > 0 else 0
+        print(
+            f"| {r['cache']} | {r['poe']:g} | {r['ms']:.1f} | {ratio:.2f}x | {r['rays_per_second'] / 1e6:.2f} "
+            f"| {r['nodes_per_ray']:.1f} | {r['working_set_mb']:.1f} MiB | {r['blocks_touched']} "
+            f"| {100 * p['voxel'] / hits:.1f} % | {e['rmse']:.2f} | {psnr(e['psnr_db'])} | {e['ssim']:.4f} "
+            f"| {100 * e['within_tolerance']:.1f} % | {100 * d['hit_miss_differ'] / n:.2f} % "
+            f"| {d['median_relative']:.1e} / {d['max_relative']:.1e} |"
+        )
+    sys.stdout.flush()
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--scenes", default="mandelbulb:1e6,cad:1e6",
+                   help="comma-separated SCENE:TRIANGLES (scenes of `oocfmt gen`)")
+    p.add_argument("--size", default="1024x768")
+    p.add_argument("--poe", default="0,0.5,1,2,4,8,16")
+    p.add_argument("--cache", default="async", help="comma-separated caches, one series each")
+    p.add_argument("--repeat", type=int, default=5, help="timed warm frames per PoE (median)")
+    p.add_argument("--codec", default="lz4", help="codec of the conversions (mmap needs none)")
+    p.add_argument("--extra", default="", help="more `oocfmt curve` arguments, space-separated")
+    p.add_argument("--dir", default=None, help="scratch folder, kept (default: a temporary one)")
+    a = p.parse_args()
+    if not os.path.exists(BIN):
+        sys.exit(f"{BIN} missing: run `cargo build --release -p oocfmt-cli` first")
+    work = a.dir or tempfile.mkdtemp(prefix="oocfmt-curve-")
+    os.makedirs(work, exist_ok=True)
+    print(f"machine: {machine()}")
+    for spec in a.scenes.split(","):
+        scene, _, tris = spec.partition(":")
+        size = int(float(tris or "1e6"))
+        stem = os.path.join(work, f"{scene}-{size}")
+        if not os.path.exists(stem + ".obj"):
+            run(["gen", scene, "--tris", str(size), "-o", stem + ".obj", "--quiet"])
+        model = f"{stem}-{a.codec.replace(':', '')}.oocf"
+        if not os.path.exists(model):
+            run(["convert", stem + ".obj", "-o", model, "--codec", a.codec, "--quiet"])
+        args = ["curve", model, "--size", a.size, "--poe", a.poe, "--cache", a.cache,
+                "--repeat", str(a.repeat), "--json", stem + "-curve.json",
+                "--plot", stem + "-curve.png", "--sheet", stem + "-sheet.png"]
+        args += [x for x in a.extra.split(" ") if x]
+        run(args)
+        with open(stem + "-curve.json") as f:
+            table(f"{scene}, {size:,} triangles", json.load(f))
+        print(f"plot {stem}-curve.png, sheet {stem}-sheet.png")
+
+
+if __name__ == "__main__":
+    main()
