@@ -29,6 +29,16 @@ fn intersect(c: &mut Criterion) {
     g.bench_function("ray/triangle miss", |bch| {
         bch.iter(|| black_box(&miss).triangle(black_box(&a), &b, &t))
     });
+    // What robustness costs: the textbook Möller–Trumbore test on the same rays, which lets
+    // rays slip through shared edges (no common edge functions, no exact fallback).
+    let (ho, hd) = ([0.1f32, 0.2, 0.0], [0.01f32, -0.02, 1.0]);
+    let (mo, md) = ([3.0f32, 0.2, 0.0], [0.01f32, -0.02, 1.0]);
+    g.bench_function("ray/triangle hit, not watertight", |bch| {
+        bch.iter(|| moller_trumbore(black_box(ho), black_box(hd), &a, &b, &t))
+    });
+    g.bench_function("ray/triangle miss, not watertight", |bch| {
+        bch.iter(|| moller_trumbore(black_box(mo), black_box(md), &a, &b, &t))
+    });
     let (lo, hi) = ([-1.0, -1.0, 4.0], [1.0, 1.0, 6.0]);
     g.bench_function("ray/box hit", |bch| {
         bch.iter(|| ray_box(black_box(&hit), black_box(lo), hi, 0.0, 0.0, f32::INFINITY))
@@ -37,6 +47,44 @@ fn intersect(c: &mut Criterion) {
         bch.iter(|| ray_box(black_box(&miss), black_box(lo), hi, 0.0, 0.0, f32::INFINITY))
     });
     g.finish();
+}
+
+/// Möller and Trumbore (1997), both sides, t > 0: the non-robust baseline.
+fn moller_trumbore(
+    o: [f32; 3],
+    d: [f32; 3],
+    a: &[f32; 3],
+    b: &[f32; 3],
+    c: &[f32; 3],
+) -> Option<f32> {
+    let sub = |p: &[f32; 3], q: &[f32; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+    let cross = |p: [f32; 3], q: [f32; 3]| {
+        [
+            p[1] * q[2] - p[2] * q[1],
+            p[2] * q[0] - p[0] * q[2],
+            p[0] * q[1] - p[1] * q[0],
+        ]
+    };
+    let dot = |p: [f32; 3], q: [f32; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
+    let (e1, e2) = (sub(b, a), sub(c, a));
+    let p = cross(d, e2);
+    let det = dot(e1, p);
+    if det.abs() < 1e-12 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = sub(&o, a);
+    let u = dot(s, p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = cross(s, e1);
+    let v = dot(d, q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let t = dot(e2, q) * inv;
+    (t > 0.0).then_some(t)
 }
 
 /// A 50k-triangle Mandelbulb converted into `dir`.
