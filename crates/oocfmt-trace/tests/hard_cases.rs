@@ -15,6 +15,7 @@ use std::sync::Arc;
 
 use oocfmt_build::convert::{convert, ConvertOptions};
 use oocfmt_build::gen::cad::{self, CadOptions};
+use oocfmt_build::gen::rng::Rng;
 use oocfmt_build::import::Recentre;
 use oocfmt_build::progress::NoProgress;
 use oocfmt_trace::blocks::{DNode, TreeletData};
@@ -29,34 +30,9 @@ type Edge = ([f32; 3], [f32; 3]);
 /// scale (depths divide by it).
 type Placement = (&'static str, Box<dyn Fn(f64) -> f64>, Recentre, f64);
 
-/// A small deterministic generator (SplitMix64): the tests draw the same rays every run.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-
-    /// A uniform direction.
-    fn direction(&mut self) -> [f32; 3] {
-        let z = self.range(-1.0, 1.0);
-        let a = self.range(0.0, std::f64::consts::TAU);
-        let r = (1.0 - z * z).sqrt();
-        [r * a.cos(), r * a.sin(), z].map(|c| c as f32)
-    }
+/// A uniform direction in f32.
+fn direction(rng: &mut Rng) -> [f32; 3] {
+    rng.direction().map(|c| c as f32)
 }
 
 /// Writes `v` and `f` lines (positions printed so that they read back bit-exact) and converts.
@@ -290,7 +266,7 @@ fn a_million_rays_at_shared_edges_and_vertices_of_closed_meshes_never_slip_throu
         let size = (0..3).map(|k| hi[k] - lo[k]).fold(0f32, f32::max);
         let origins: Vec<[f32; 3]> = (0..8)
             .map(|i| {
-                let d = rng.direction();
+                let d = direction(&mut rng);
                 let r = if i == 0 {
                     0.0
                 } else {
@@ -359,7 +335,7 @@ fn ten_million_random_rays_find_the_brute_force_nearest_hit() {
                     let m = 0.25 * (hi[k] - lo[k]);
                     rng.range(f64::from(lo[k] - m), f64::from(hi[k] + m)) as f32
                 });
-                Ray::new(o, rng.direction())
+                Ray::new(o, direction(&mut rng))
             })
             .collect();
         let got = trace_all(&scene, &rays);
@@ -410,10 +386,10 @@ fn axis_parallel_split_plane_box_face_inside_and_grazing_rays_agree_with_brute_f
         // In a split plane (one component exactly the split, that direction component ±0),
         // and across it from a point on it.
         for i in 0..30_000 {
-            let (k, split) = planes[rng.next() as usize % planes.len()];
+            let (k, split) = planes[rng.next_u64() as usize % planes.len()];
             let mut o = inside(&mut rng);
             o[k] = split;
-            let mut d = rng.direction();
+            let mut d = direction(&mut rng);
             if i % 2 == 0 {
                 d[k] = if i % 4 == 0 { 0.0 } else { -0.0 };
             }
@@ -427,18 +403,18 @@ fn axis_parallel_split_plane_box_face_inside_and_grazing_rays_agree_with_brute_f
             let d = if i % 5 == 0 {
                 axes[(k + 1) % 3]
             } else {
-                rng.direction()
+                direction(&mut rng)
             };
             rays.push(Ray::new(o, d));
         }
         // Grazing: from a point in a triangle's plane, along one of its edges or nearly so.
         for i in 0..20_000 {
-            let t = &tris[rng.next() as usize % tris.len()];
+            let t = &tris[rng.next_u64() as usize % tris.len()];
             let e = [0, 1, 2].map(|k| t[1][k] - t[0][k]);
             let s = rng.range(-2.0, -0.5) as f32;
             let o = [0, 1, 2].map(|k| t[0][k] + s * e[k]);
             let tilt = if i % 2 == 0 { 0.0 } else { 1e-6 };
-            let n = rng.direction();
+            let n = direction(&mut rng);
             let d = [0, 1, 2].map(|k| e[k] + tilt * n[k]);
             rays.push(Ray::new(o, d));
         }

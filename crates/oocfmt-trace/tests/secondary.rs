@@ -5,11 +5,11 @@
 
 mod common;
 
-use std::f64::consts::PI;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use oocfmt_build::gen::rng::Rng;
 use oocfmt_trace::intersect::Ray;
 use oocfmt_trace::light::Shadows;
 use oocfmt_trace::occlusion::{ao_lod_c, Occlusion};
@@ -19,44 +19,9 @@ use oocfmt_trace::spawn::{from_triangle, Origin};
 use oocfmt_trace::traverse::{Memo, Surface, Tracer};
 use oocfmt_trace::{render, BlockingCache, Camera, Image, RenderOptions, Scene};
 
-/// splitmix64: a small deterministic generator for the random tests.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn range(&mut self, a: f64, b: f64) -> f64 {
-        a + (b - a) * self.unit()
-    }
-
-    /// ±10^u, u uniform in [−e, e]: magnitudes spread evenly over 2e decades.
-    fn exp(&mut self, e: f64) -> f64 {
-        let m = 10f64.powf(self.range(-e, e));
-        if self.next() & 1 == 0 {
-            m
-        } else {
-            -m
-        }
-    }
-
-    /// A uniform direction on the sphere.
-    fn direction(&mut self) -> [f64; 3] {
-        let z = self.range(-1.0, 1.0);
-        let phi = self.range(0.0, 2.0 * PI);
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        [r * phi.cos(), r * phi.sin(), z]
-    }
+/// ±10^u, u uniform in [−e, e]: magnitudes spread evenly over 2e decades.
+fn exp(rng: &mut Rng, e: f64) -> f64 {
+    rng.sign() * 10f64.powf(rng.range(-e, e))
 }
 
 fn write_obj(path: &Path, v: &[[f64; 3]], n: &[[f64; 3]], faces: &[[usize; 3]]) {
@@ -438,7 +403,7 @@ fn rays_spawned_from_a_triangle_never_hit_it_again() {
         // slivers among them); half are of one size from 1e-8 to 1e8, up to a thousand times
         // their size away from the origin.
         let v: [[f32; 3]; 3] = if case % 2 == 0 {
-            [0; 3].map(|_| [0; 3].map(|_| rng.exp(8.0) as f32))
+            [0; 3].map(|_| [0; 3].map(|_| exp(&mut rng, 8.0) as f32))
         } else {
             let size = 10f64.powf(rng.range(-8.0, 8.0));
             let far = size * 10f64.powf(rng.range(0.0, 3.0));

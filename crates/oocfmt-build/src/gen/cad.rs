@@ -12,6 +12,7 @@ use std::path::Path;
 
 use super::obj_writer::{mtl_beside, write_mtl, ObjWriter};
 pub use super::obj_writer::{GenError, GenReport};
+use super::rng::Rng;
 
 /// The materials, by name and diffuse colour.
 pub const MATERIALS: [(&str, [f32; 3]); 8] = [
@@ -106,55 +107,6 @@ fn generate(
         },
         peak,
     ))
-}
-
-/// splitmix64: tiny, fast and good enough for placing parts.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-
-    /// Uniform in lo ..= hi.
-    fn int(&mut self, lo: u32, hi: u32) -> u32 {
-        lo + (self.next_u64() % u64::from(hi - lo + 1)) as u32
-    }
-
-    fn chance(&mut self, p: f64) -> bool {
-        self.unit() < p
-    }
-
-    fn sign(&mut self) -> f64 {
-        if self.chance(0.5) {
-            1.0
-        } else {
-            -1.0
-        }
-    }
-
-    fn direction(&mut self) -> [f64; 3] {
-        loop {
-            let v = [0; 3].map(|_| self.range(-1.0, 1.0));
-            let l = dot(v, v);
-            if l > 1e-4 && l <= 1.0 {
-                return scale(v, 1.0 / l.sqrt());
-            }
-        }
-    }
 }
 
 fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
