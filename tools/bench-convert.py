@@ -14,34 +14,11 @@ to compare; absolute figures depend on the machine, which is printed first.
 import argparse
 import json
 import os
-import platform
 import statistics
-import subprocess
 import sys
 import tempfile
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.join(ROOT, "target", "release", "oocfmt")
-
-
-def machine():
-    cpu = platform.processor() or "unknown CPU"
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} logical cores, {platform.system()} {platform.release()}"
-
-
-def run(args):
-    r = subprocess.run([BIN] + args, capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"oocfmt {' '.join(args)} failed ({r.returncode}):\n{r.stdout}{r.stderr}")
-    return r.stdout
+from benchlib import machine, require_binary, run
 
 
 def main():
@@ -53,8 +30,7 @@ def main():
     p.add_argument("--codec", default="lz4")
     p.add_argument("--dir", default=None, help="scratch folder (default: a temporary one)")
     a = p.parse_args()
-    if not os.path.exists(BIN):
-        sys.exit(f"{BIN} missing: run `cargo build --release -p oocfmt-cli` first")
+    require_binary()
     limits = [x for x in a.mem_limits.split(",") if x] or [None]
     work = a.dir or tempfile.mkdtemp(prefix="oocfmt-bench-")
     print(f"machine: {machine()}")

@@ -14,34 +14,10 @@ printed first.
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.join(ROOT, "target", "release", "oocfmt")
-
-
-def machine():
-    import platform
-
-    cpu = platform.processor() or "unknown CPU"
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} logical cores, {platform.system()} {platform.release()}"
-
-
-def run(args):
-    r = subprocess.run([BIN] + args, capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"oocfmt {' '.join(args)} failed ({r.returncode}):\n{r.stdout}{r.stderr}")
-    return r.stdout
+from benchlib import machine, require_binary, run
 
 
 def psnr(v):
@@ -88,8 +64,7 @@ def main():
     p.add_argument("--extra", default="", help="more `oocfmt curve` arguments, space-separated")
     p.add_argument("--dir", default=None, help="scratch folder, kept (default: a temporary one)")
     a = p.parse_args()
-    if not os.path.exists(BIN):
-        sys.exit(f"{BIN} missing: run `cargo build --release -p oocfmt-cli` first")
+    require_binary()
     work = a.dir or tempfile.mkdtemp(prefix="oocfmt-curve-")
     os.makedirs(work, exist_ok=True)
     print(f"machine: {machine()}")

@@ -17,13 +17,11 @@ thread (`--threads 1`); with all cores Embree would scale about linearly as oocf
 import argparse
 import json
 import os
-import struct
 import subprocess
 import sys
 import time
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.join(ROOT, "target", "release", "oocfmt")
+from benchlib import ROOT, require_binary, run
 VENV = os.path.join(ROOT, "target", "bench-venv")
 
 
@@ -37,13 +35,6 @@ def ensure_venv():
         subprocess.run([sys.executable, "-m", "venv", VENV], check=True)
         subprocess.run([py, "-m", "pip", "install", "-q", "numpy", "embreex"], check=True)
     os.execv(py, [py] + sys.argv)
-
-
-def run(args):
-    r = subprocess.run([BIN] + args, capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"oocfmt {' '.join(args)} failed ({r.returncode}):\n{r.stdout}{r.stderr}")
-    return r.stdout
 
 
 def read_obj(path, np):
@@ -100,8 +91,7 @@ def main():
     p.add_argument("--repeat", type=int, default=3, help="timed passes of each (the best is kept)")
     p.add_argument("--dir", default=os.path.join(ROOT, "target", "bench-embree"))
     a = p.parse_args()
-    if not os.path.exists(BIN):
-        sys.exit(f"{BIN} missing: run `cargo build --release -p oocfmt-cli` first")
+    require_binary()
     os.makedirs(a.dir, exist_ok=True)
     n = int(float(a.tris))
     obj = os.path.join(a.dir, f"mandelbulb-{n}.obj")

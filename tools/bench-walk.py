@@ -25,19 +25,9 @@ import json
 import math
 import os
 import statistics
-import subprocess
-import sys
 import tempfile
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.join(ROOT, "target", "release", "oocfmt")
-
-
-def run(args):
-    r = subprocess.run([BIN] + args, capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"oocfmt {' '.join(args)} failed ({r.returncode}):\n{r.stdout}{r.stderr}")
-    return r.stdout
+from benchlib import ROOT, require_binary, run
 
 
 def path_cameras(lo, hi, frames):
@@ -82,8 +72,7 @@ def main():
     p.add_argument("--fetchers", type=int, default=2)
     p.add_argument("--dir", default=os.path.join(ROOT, "target", "bench-walk"))
     a = p.parse_args()
-    if not os.path.exists(BIN):
-        sys.exit(f"{BIN} missing: run `cargo build --release -p oocfmt-cli` first")
+    require_binary()
     os.makedirs(a.dir, exist_ok=True)
     model = a.model
     if model is None:
