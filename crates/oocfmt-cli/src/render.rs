@@ -23,21 +23,8 @@ pub struct Args {
     /// The PNG to write
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Image size, WIDTHxHEIGHT
-    #[arg(long, default_value = "1024x768", value_parser = parse_size)]
-    pub size: (u32, u32),
-    /// Eye position X,Y,Z in world coordinates (default: framing the whole model)
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub eye: Option<[f64; 3]>,
-    /// The point looked at, X,Y,Z in world coordinates (default: the model's centre)
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub look_at: Option<[f64; 3]>,
-    /// Up direction X,Y,Z
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub up: Option<[f64; 3]>,
-    /// Vertical field of view in degrees
-    #[arg(long, default_value_t = oocfmt_trace::camera::DEFAULT_FOV_Y)]
-    pub fov_y: f64,
+    #[command(flatten)]
+    pub view: View,
     /// Pixels of error: a ray stops on a LOD voxel whose radius is at most this many pixels;
     /// 0 renders full detail
     #[arg(long, default_value_t = 1.0)]
@@ -364,16 +351,36 @@ pub(crate) fn stored_cameras(scene: &Scene, cameras: Vec<Camera>) -> Vec<Camera>
         .collect()
 }
 
+/// The view flags `render` and `curve` share.
+#[derive(clap::Args, Clone, Copy)]
+pub struct View {
+    /// Image size, WIDTHxHEIGHT
+    #[arg(long, default_value = "1024x768", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Eye position X,Y,Z in world coordinates (default: framing the whole model)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<[f64; 3]>,
+    /// The point looked at, X,Y,Z in world coordinates (default: the model's centre)
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub look_at: Option<[f64; 3]>,
+    /// Up direction X,Y,Z
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<[f64; 3]>,
+    /// Vertical field of view in degrees
+    #[arg(long, default_value_t = oocfmt_trace::camera::DEFAULT_FOV_Y)]
+    pub fov_y: f64,
+}
+
 /// The camera of a still view in stored coordinates: framing the whole model, with the eye,
 /// look-at point (world coordinates) and up direction given on the command line.
-pub(crate) fn still_camera(
-    scene: &Scene,
-    (w, h): (u32, u32),
-    eye: Option<[f64; 3]>,
-    look_at: Option<[f64; 3]>,
-    up: Option<[f64; 3]>,
-    fov_y: f64,
-) -> Camera {
+pub(crate) fn still_camera(scene: &Scene, v: &View) -> Camera {
+    let View {
+        size: (w, h),
+        eye,
+        look_at,
+        up,
+        fov_y,
+    } = *v;
     let m = scene.metadata();
     let origin = m.scene.origin;
     let stored = |p: [f64; 3]| [0, 1, 2].map(|k| p[k] - origin[k]);
@@ -393,7 +400,7 @@ pub(crate) fn still_camera(
 
 pub fn run(a: &Args) -> CliResult {
     use_threads(a.threads)?;
-    let (w, h) = a.size;
+    let (w, h) = a.view.size;
     // Read the path before the model: a bad path file is reported without loading anything.
     let path_cameras = match &a.path {
         Some(p) => Some(walk::read_path(p, w, h).map_err(cli_error)?),
@@ -415,7 +422,7 @@ pub fn run(a: &Args) -> CliResult {
         let cameras = stored_cameras(&scene, cameras);
         return walkthrough(a, &scene, cache.get(), &cameras, &opts);
     }
-    let camera = still_camera(&scene, a.size, a.eye, a.look_at, a.up, a.fov_y);
+    let camera = still_camera(&scene, &a.view);
     let c = cache.get();
     let (mut result, settle_frames) = settle(&scene, &cache, &camera, &opts)?;
     for _ in 1..a.repeat {

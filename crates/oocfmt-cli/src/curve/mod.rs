@@ -20,8 +20,7 @@ use oocfmt_trace::{BlockingCache, Camera, Image, RenderOptions, Scene};
 
 use crate::error::{CliError, CliResult};
 use crate::render::{
-    cli_error, frame, parse_size, parse_vec3, settle, still_camera, stored_cameras, use_threads,
-    write_json, Cache,
+    cli_error, frame, settle, still_camera, stored_cameras, use_threads, write_json, Cache, View,
 };
 use touched::Touched;
 
@@ -41,21 +40,8 @@ pub struct Args {
     /// needs a container converted with `--codec none`)
     #[arg(long, default_value = "async", value_delimiter = ',', value_parser = ["async", "blocking", "mmap"])]
     pub cache: Vec<String>,
-    /// Image size, WIDTHxHEIGHT
-    #[arg(long, default_value = "1024x768", value_parser = parse_size)]
-    pub size: (u32, u32),
-    /// Eye position X,Y,Z in world coordinates (default: framing the whole model)
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub eye: Option<[f64; 3]>,
-    /// The point looked at, X,Y,Z in world coordinates (default: the model's centre)
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub look_at: Option<[f64; 3]>,
-    /// Up direction X,Y,Z
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub up: Option<[f64; 3]>,
-    /// Vertical field of view in degrees
-    #[arg(long, default_value_t = oocfmt_trace::camera::DEFAULT_FOV_Y)]
-    pub fov_y: f64,
+    #[command(flatten)]
+    pub view: View,
     /// A walkthrough (as for `render --path`) instead of one view: every figure is over all
     /// its frames (times per frame, the error as of one image, SSIM the frames' mean); the
     /// contact sheet shows the first frame. Every frame's images are kept in memory.
@@ -195,7 +181,7 @@ pub fn run(a: &Args) -> CliResult {
         }
         kinds.push(k);
     }
-    let (w, h) = a.size;
+    let (w, h) = a.view.size;
     let path_cameras = match &a.path {
         Some(p) => Some(oocfmt_trace::walk::read_path(p, w, h).map_err(cli_error)?),
         None => None,
@@ -203,9 +189,7 @@ pub fn run(a: &Args) -> CliResult {
     let scene = Arc::new(Scene::open(&a.model).map_err(cli_error)?);
     let cameras = match path_cameras {
         Some(c) => stored_cameras(&scene, c),
-        None => vec![still_camera(
-            &scene, a.size, a.eye, a.look_at, a.up, a.fov_y,
-        )],
+        None => vec![still_camera(&scene, &a.view)],
     };
     let budget = usize::try_from(a.cache_mb << 20).unwrap_or(usize::MAX);
     let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
@@ -380,7 +364,7 @@ fn db(psnr: f64) -> String {
 fn print_table(a: &Args, cameras: &[Camera], reference: &Reference, rows: &[Row]) {
     // A closed stdout (`| head`) is not an error of the measurement: the files are written.
     let mut out = std::io::stdout().lock();
-    let (w, h) = a.size;
+    let (w, h) = a.view.size;
     let _ = writeln!(
         out,
         "{}: {w}x{h}, {} camera(s), {} threads; warm caches, median of {} timed frame(s); \
