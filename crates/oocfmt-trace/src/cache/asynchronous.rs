@@ -327,7 +327,10 @@ impl Shared {
     }
 
     /// Decoded bytes a block is expected to take, from its directory entry, for making room
-    /// before it is fetched: the decoded shapes are at most about three times the raw bytes.
+    /// before it is fetched. Three times the raw bytes is an estimate (16-byte decoded nodes
+    /// for 8-byte stored ones, 36 bytes of corners for a triangle's indices and shared
+    /// vertices), not a bound: a block that finds too little room is dropped and asked for
+    /// again, never kept over the budget.
     fn estimate(&self, id: u32) -> u64 {
         self.scene
             .reader()
