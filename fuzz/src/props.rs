@@ -171,7 +171,7 @@ pub fn block_decode(data: &[u8]) {
         level: 0,
         item_count: item_count.max(1),
     };
-    let _ = survey_block(&entry, &raw, attrs);
+    let _ = survey_block(&entry, &raw, attrs, oocfmt::records::LodKinds::VOXEL);
     match kind {
         BlockKind::Treelet => treelet_decode(&raw),
         BlockKind::Triangle => triangle_decode(&raw),

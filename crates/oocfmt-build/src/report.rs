@@ -31,6 +31,8 @@ pub struct ConvertReport {
     pub depth: u32,
     pub voxels_single: u64,
     pub voxels_six: u64,
+    /// What the LOD nodes carry: `voxel`, `rlod` or `voxel+rlod`.
+    pub lod_kinds: String,
     pub proxies: u64,
     pub blocks: BTreeMap<String, BlockStats>,
     pub file_bytes: u64,

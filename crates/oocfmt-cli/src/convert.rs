@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use oocfmt::records::LodKinds;
 use oocfmt::{Codec, WriteOptions};
 use oocfmt_build::convert::{convert, ConvertError, ConvertOptions, MIN_MEM_LIMIT};
 use oocfmt_build::import::gltf::GltfOptions;
@@ -34,6 +35,10 @@ pub struct Args {
     /// Node levels per treelet; every this-many levels holds the LOD voxels
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=8))]
     pub treelet_height: u8,
+    /// LOD representations to store in the LOD nodes: voxel (Áfra 2012), rlod (planes, Yoon
+    /// et al. 2006) or both. R-LODs need the in-core build (see --mem-limit)
+    #[arg(long, default_value = "voxel", value_parser = parse_lod_kinds)]
+    pub lod: LodKinds,
     /// Refuse the first bad triangle (NaN, out-of-range index, zero area) instead of dropping it
     #[arg(long)]
     pub strict: bool,
@@ -97,6 +102,16 @@ pub fn parse_size(s: &str) -> Result<u64, String> {
     Ok((v * mult as f64) as u64)
 }
 
+/// A `--lod` for `convert`: voxel, rlod or both.
+fn parse_lod_kinds(s: &str) -> Result<LodKinds, String> {
+    match s {
+        "voxel" => Ok(LodKinds::VOXEL),
+        "rlod" => Ok(LodKinds::RLOD),
+        "both" => Ok(LodKinds::BOTH),
+        _ => Err(format!("`{s}`: expected voxel, rlod or both")),
+    }
+}
+
 pub fn run(a: &Args) -> CliResult {
     if let Some(n) = a.threads {
         rayon::ThreadPoolBuilder::new()
@@ -106,6 +121,7 @@ pub fn run(a: &Args) -> CliResult {
     }
     let write = WriteOptions {
         codec: a.codec,
+        lod: a.lod,
         ..WriteOptions::default()
     }
     .with_block_size(a.block_size)?;
@@ -135,6 +151,7 @@ pub fn run(a: &Args) -> CliResult {
         ConvertError::Import(oocfmt_build::import::ImportError::Io { path, source }) => {
             CliError::Io { path, source }
         }
+        e @ ConvertError::RlodOutOfCore { .. } => CliError::Usage(e.to_string()),
         ConvertError::UnknownFormat(path) => CliError::Usage(format!(
             "{path}: unknown input format (expected .obj, .gltf or .glb)"
         )),
@@ -194,8 +211,8 @@ fn render(r: &ConvertReport) -> String {
     );
     let _ = writeln!(
         o,
-        "LOD        {} one-sample + {} six-sample voxels, {} proxies",
-        r.voxels_single, r.voxels_six, r.proxies
+        "LOD        {}: {} one-sample + {} six-sample voxels, {} proxies",
+        r.lod_kinds, r.voxels_single, r.voxels_six, r.proxies
     );
     for (kind, b) in &r.blocks {
         let _ = writeln!(

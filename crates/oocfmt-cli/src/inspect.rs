@@ -79,6 +79,17 @@ pub fn render(s: &Summary) -> String {
         "format     {} features {feats} (compatible {:#x}, incompatible {:#x})",
         s.version, s.compatible_features, s.incompatible_features
     );
+    let rlods: u64 = s.levels.iter().map(|r| r.rlods).sum();
+    let voxels: u64 = s
+        .levels
+        .iter()
+        .map(|r| r.voxels_single + r.voxels_six)
+        .sum();
+    let _ = writeln!(
+        o,
+        "LOD kinds  {} ({voxels} voxels, {rlods} R-LODs)",
+        s.lod_kinds
+    );
     let _ = writeln!(o, "identity   {}", s.identity);
     let _ = writeln!(o);
     let _ = writeln!(

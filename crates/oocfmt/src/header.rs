@@ -7,8 +7,12 @@ use crate::error::{bad, Code, Error, ErrorKind, Result};
 pub const MAGIC: [u8; 8] = [0x89, b'O', b'C', b'F', b'\r', b'\n', 0x1a, b'\n'];
 /// The major version this crate reads and writes.
 pub const VERSION_MAJOR: u16 = 1;
-/// The minor version this crate writes; it reads every minor of [`VERSION_MAJOR`].
-pub const VERSION_MINOR: u16 = 0;
+/// The newest minor version this crate knows; it reads every minor of [`VERSION_MAJOR`]. It
+/// writes [`VERSION_MINOR_BASE`] for files that use nothing added since (voxel-only files stay
+/// byte-identical to 1.0 ones), and this for files with R-LODs.
+pub const VERSION_MINOR: u16 = 1;
+/// The minor version of files that use no feature added after 1.0.
+pub const VERSION_MINOR_BASE: u16 = 0;
 pub const MIN_BLOCK_SIZE_LOG2: u8 = 12;
 pub const MAX_BLOCK_SIZE_LOG2: u8 = 20;
 pub const DEFAULT_BLOCK_SIZE_LOG2: u8 = 16;
@@ -17,8 +21,12 @@ pub const COMPAT_PROXIES: u64 = 1 << 0;
 pub const COMPAT_LOD_VOXELS: u64 = 1 << 1;
 /// Compatible feature bits defined by this version.
 pub const KNOWN_COMPAT: u64 = COMPAT_PROXIES | COMPAT_LOD_VOXELS;
-/// Incompatible feature bits defined by this version: none.
-pub const KNOWN_INCOMPAT: u64 = 0;
+/// LOD nodes carry an R-LOD record after their voxel (spec §6.4); since 1.1.
+pub const INCOMPAT_LOD_RLODS: u64 = 1 << 0;
+/// LOD nodes carry no voxel (only with [`INCOMPAT_LOD_RLODS`]); since 1.1.
+pub const INCOMPAT_LOD_NO_VOXELS: u64 = 1 << 1;
+/// Incompatible feature bits defined by this version.
+pub const KNOWN_INCOMPAT: u64 = INCOMPAT_LOD_RLODS | INCOMPAT_LOD_NO_VOXELS;
 
 // Field offsets, each built from the one before so prose and code cannot drift apart.
 pub const OFF_MAGIC: usize = 0;
@@ -104,7 +112,7 @@ impl Header {
     pub fn new(block_size_log2: u8) -> Self {
         Header {
             major: VERSION_MAJOR,
-            minor: VERSION_MINOR,
+            minor: VERSION_MINOR_BASE,
             block_size_log2,
             incompatible_features: 0,
             compatible_features: 0,
@@ -179,6 +187,15 @@ impl Header {
                     "incompatible feature bits {unknown:#x} are not known to this reader"
                 ),
             })
+            .at(OFF_INCOMPAT as u64));
+        }
+        if h.incompatible_features & INCOMPAT_LOD_NO_VOXELS != 0
+            && h.incompatible_features & INCOMPAT_LOD_RLODS == 0
+        {
+            return Err(Error::malformed(
+                Code::HeaderFeatureUnsupported,
+                "feature LOD_NO_VOXELS without LOD_RLODS leaves LOD nodes with nothing to show",
+            )
             .at(OFF_INCOMPAT as u64));
         }
         Ok(h)

@@ -11,7 +11,7 @@ use crate::error::{Code, Error, ErrorKind, Result};
 use crate::header::{Header, SectionTable, HEADER_LEN, OFF_HEADER_CRC, VERSION_MINOR};
 use crate::metadata::Metadata;
 use crate::mmap::MmapSource;
-use crate::records::{ProxyRecord, TreeletBlock, TriangleBlock};
+use crate::records::{LodKinds, ProxyRecord, TreeletBlock, TriangleBlock};
 use crate::source::{ByteSource, FileSource};
 use crate::trailer::{Trailer, TRAILER_LEN};
 
@@ -58,12 +58,14 @@ pub struct Block {
     pub id: u32,
     pub entry: BlockEntry,
     pub data: Vec<u8>,
+    /// The LOD kinds of the file it came from: the layout of a treelet block's LOD area.
+    pub lod: LodKinds,
 }
 
 impl Block {
     pub fn treelets(&self) -> Result<TreeletBlock<'_>> {
         self.check_kind(BlockKind::Treelet)?;
-        TreeletBlock::parse(&self.data).map_err(|e| e.in_block(self.id))
+        TreeletBlock::parse_with(&self.data, self.lod).map_err(|e| e.in_block(self.id))
     }
 
     pub fn triangles(&self, attrs: u16) -> Result<TriangleBlock<'_>> {
@@ -148,6 +150,11 @@ impl Reader {
         &self.name
     }
 
+    /// Which LOD representations the file's LOD nodes carry (header feature bits).
+    pub fn lod_kinds(&self) -> LodKinds {
+        LodKinds::of_header(&self.index.header)
+    }
+
     pub fn header(&self) -> &Header {
         &self.index.header
     }
@@ -197,7 +204,12 @@ impl Reader {
         let entry = *self.entry(id)?;
         let data = read_block_data(self.source.as_ref(), &entry, &self.opts)
             .map_err(|e| e.in_block(id).in_file(&self.name))?;
-        Ok(Block { id, entry, data })
+        Ok(Block {
+            id,
+            entry,
+            data,
+            lod: self.lod_kinds(),
+        })
     }
 
     /// The stored bytes of block `id` without a copy, where the source is memory (a map).

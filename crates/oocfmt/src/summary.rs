@@ -6,10 +6,14 @@ use serde::Serialize;
 
 use crate::directory::{BlockEntry, BlockKind};
 use crate::error::{bad, Code, Result};
-use crate::header::{COMPAT_LOD_VOXELS, COMPAT_PROXIES};
+use crate::header::{
+    COMPAT_LOD_VOXELS, COMPAT_PROXIES, INCOMPAT_LOD_NO_VOXELS, INCOMPAT_LOD_RLODS,
+};
 use crate::metadata::Metadata;
 use crate::records::triangle::ATTR_MATERIALS;
-use crate::records::{Node, ProxyRecord, TreeletBlock, TreeletSummary, TriangleBlock};
+use crate::records::{
+    LodKinds, Node, ProxyRecord, TreeletBlock, TreeletSummary, TriangleBlock,
+};
 use crate::Reader;
 
 /// What one block holds, found by decoding it and checking its framing.
@@ -32,11 +36,17 @@ pub enum BlockFacts {
 }
 
 /// Decodes the framing of `raw` (block `id` with directory entry `e`) and checks every record
-/// it can check alone. `attrs` is the schema's triangle attribute word, when known.
-pub fn survey_block(e: &BlockEntry, raw: &[u8], attrs: Option<u16>) -> Result<BlockFacts> {
+/// it can check alone. `attrs` is the schema's triangle attribute word, when known; `lod` the
+/// file's LOD kinds (the layout of a treelet block's LOD area).
+pub fn survey_block(
+    e: &BlockEntry,
+    raw: &[u8],
+    attrs: Option<u16>,
+    lod: LodKinds,
+) -> Result<BlockFacts> {
     let facts = match e.kind {
         BlockKind::Treelet => {
-            let block = TreeletBlock::parse(raw)?;
+            let block = TreeletBlock::parse_with(raw, lod)?;
             let mut refs = 0u64;
             let nodes = block.walk(|_, _, n| {
                 if let Node::Leaf { count, .. } = n {
@@ -109,6 +119,7 @@ pub struct LevelRow {
     pub leaves: u64,
     pub voxels_single: u64,
     pub voxels_six: u64,
+    pub rlods: u64,
     pub triangles: u64,
     pub proxies: u64,
     pub raw_bytes: u64,
@@ -150,6 +161,8 @@ pub struct Summary {
     pub incompatible_features: u64,
     pub compatible_features: u64,
     pub feature_names: Vec<String>,
+    /// What the LOD nodes carry: `voxel`, `rlod` or `voxel+rlod`.
+    pub lod_kinds: String,
     pub identity: String,
     pub block_count: u32,
     pub levels: Vec<LevelRow>,
@@ -177,7 +190,7 @@ pub fn summarize(reader: &Reader) -> Result<Summary> {
         match e.kind {
             BlockKind::Treelet => {
                 let block = reader.read_block(id)?;
-                let facts = survey_block(e, &block.data, None)
+                let facts = survey_block(e, &block.data, None, reader.lod_kinds())
                     .map_err(|err| err.in_block(id).in_file(reader.name()))?;
                 if let BlockFacts::Treelet {
                     nodes,
@@ -190,6 +203,7 @@ pub fn summarize(reader: &Reader) -> Result<Summary> {
                     row.leaves += nodes.leaves;
                     row.voxels_single += nodes.voxels_single;
                     row.voxels_six += nodes.voxels_six;
+                    row.rlods += nodes.rlods;
                     leaf_refs += leaf_triangle_refs;
                 }
             }
@@ -241,6 +255,12 @@ fn build_summary(reader: &Reader, levels: Vec<LevelRow>, leaf_refs: u64) -> Summ
     if h.compatible_features & COMPAT_LOD_VOXELS != 0 {
         feature_names.push("LOD_VOXELS".to_string());
     }
+    if h.incompatible_features & INCOMPAT_LOD_RLODS != 0 {
+        feature_names.push("LOD_RLODS".to_string());
+    }
+    if h.incompatible_features & INCOMPAT_LOD_NO_VOXELS != 0 {
+        feature_names.push("LOD_NO_VOXELS".to_string());
+    }
     Summary {
         file: reader.name().to_string(),
         file_length: reader.file_len(),
@@ -249,6 +269,7 @@ fn build_summary(reader: &Reader, levels: Vec<LevelRow>, leaf_refs: u64) -> Summ
         incompatible_features: h.incompatible_features,
         compatible_features: h.compatible_features,
         feature_names,
+        lod_kinds: reader.lod_kinds().name().to_string(),
         identity: format!("{:08x}", reader.identity()),
         block_count: h.sections.block_count,
         residency: Residency {

@@ -12,8 +12,9 @@ use crate::directory::{BlockEntry, BlockKind, CodecId};
 use crate::error::{Error, Result};
 use crate::header::{
     Header, SectionTable, COMPAT_LOD_VOXELS, COMPAT_PROXIES, DEFAULT_BLOCK_SIZE_LOG2, HEADER_LEN,
-    MAX_BLOCK_SIZE_LOG2, MIN_BLOCK_SIZE_LOG2, OFF_HEADER_CRC,
+    MAX_BLOCK_SIZE_LOG2, MIN_BLOCK_SIZE_LOG2, OFF_HEADER_CRC, VERSION_MINOR,
 };
+use crate::records::LodKinds;
 use crate::metadata::Metadata;
 use crate::trailer::Trailer;
 
@@ -33,6 +34,8 @@ impl OutputFile for BufWriter<File> {
 pub struct WriteOptions {
     pub block_size_log2: u8,
     pub codec: Codec,
+    /// What the LOD nodes carry: the header's LOD feature bits and, with R-LODs, minor 1.
+    pub lod: LodKinds,
 }
 
 impl Default for WriteOptions {
@@ -40,6 +43,7 @@ impl Default for WriteOptions {
         WriteOptions {
             block_size_log2: DEFAULT_BLOCK_SIZE_LOG2,
             codec: Codec::default(),
+            lod: LodKinds::VOXEL,
         }
     }
 }
@@ -149,7 +153,14 @@ impl<F: OutputFile> Writer<F> {
             out: None,
             temp,
             target: path.to_path_buf(),
-            header: Header::new(opts.block_size_log2),
+            header: {
+                let mut h = Header::new(opts.block_size_log2);
+                h.incompatible_features = opts.lod.incompatible_bits();
+                if h.incompatible_features != 0 {
+                    h.minor = VERSION_MINOR;
+                }
+                h
+            },
             codec: opts.codec,
             entries: Vec::new(),
             pos: HEADER_LEN as u64,

@@ -641,7 +641,7 @@ fn header_and_trailer_that_disagree_are_refused() -> TestResult {
 #[test]
 fn an_unknown_incompatible_feature_is_refused() -> TestResult {
     for f in files() {
-        for bit in [0u32, 5, 63] {
+        for bit in [2u32, 5, 63] {
             let mut b = f.bytes.clone();
             put_u64(&mut b, header::OFF_INCOMPAT, 1u64 << bit);
             let b = reseal(&b)?;

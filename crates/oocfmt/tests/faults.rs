@@ -127,6 +127,7 @@ fn rewrite<F: OutputFile>(
     let opts = WriteOptions {
         block_size_log2: src.header().block_size_log2,
         codec,
+        ..WriteOptions::default()
     };
     let mut w = Writer::create_with(path, opts, wrap)?;
     for id in 0..src.header().sections.block_count {
@@ -401,6 +402,7 @@ fn write_encoded_refuses_an_inconsistent_block() -> TestResult {
             WriteOptions {
                 block_size_log2: 12,
                 codec: oocfmt::Codec::None,
+                ..WriteOptions::default()
             },
         )?;
         let e = w.write_encoded(b).err().map(|e| e.code());

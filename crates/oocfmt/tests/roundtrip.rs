@@ -638,6 +638,7 @@ fn round_trip(
     let opts = WriteOptions {
         block_size_log2: log2,
         codec,
+        ..WriteOptions::default()
     };
     let summary = write_file(&path, opts, &blocks, &meta).map_err(|e| fail(&e))?;
     let bytes = std::fs::read(&path).map_err(|e| fail(&e))?;
@@ -872,9 +873,10 @@ proptest! {
                 item_count: b.items,
             },
             data: b.raw.clone(),
+            lod: oocfmt::records::LodKinds::VOXEL,
         };
         check_block(&block, &b.expect)?;
-        let facts = oocfmt::summary::survey_block(&block.entry, &b.raw, Some(attrs));
+        let facts = oocfmt::summary::survey_block(&block.entry, &b.raw, Some(attrs), oocfmt::records::LodKinds::VOXEL);
         prop_assert!(facts.is_ok(), "{:?}", facts.err().map(|e| e.to_string()));
         if b.kind == BlockKind::Treelet {
             prop_assert!(TreeletBlock::parse(&b.raw).is_ok());

@@ -164,3 +164,17 @@ fn record_sizes_match_the_spec() {
     assert!(s.contains(&format!("Leaf node (type 2), {NODE_LEAF_LEN} bytes")));
     assert!(s.contains(&format!("records of {PROXY_LEN} bytes")));
 }
+
+#[test]
+fn rlod_table_matches_the_code() {
+    let rows = table(&spec(), "### 6.4 R-LOD records");
+    check_contiguous(&rows, oocfmt::records::RLOD_LEN, "R-LOD record");
+    let s = spec();
+    for (name, bit) in [
+        ("LOD_RLODS", header::INCOMPAT_LOD_RLODS),
+        ("LOD_NO_VOXELS", header::INCOMPAT_LOD_NO_VOXELS),
+    ] {
+        let row = format!("| incompatible | {} | `{name}` |", bit.trailing_zeros());
+        assert!(s.contains(&row), "{row}");
+    }
+}

@@ -14,12 +14,12 @@ pub(crate) mod triangles;
 use std::path::Path;
 
 use oocfmt::metadata::{Build, Counts, Provenance, Scene, Schema, TreeletRef};
-use oocfmt::records::{Voxel, PROXY_LEN};
+use oocfmt::records::{LodKinds, Voxel, PROXY_LEN};
 use oocfmt::{BlockKind, EncodedBlock, Metadata, WriteOptions, WriteSummary, Writer};
 use rayon::prelude::*;
 
 use crate::kdtree::{KdError, KdTree};
-use crate::lod::{DEFAULT_VOXEL_THRESHOLD, LOD_SAMPLING};
+use crate::lod::{DEFAULT_VOXEL_THRESHOLD, LOD_SAMPLING, RLOD_FIT};
 use crate::mesh::{Mesh, MeshError};
 use plan::{Role, TreePlan};
 use triangles::{TriangleCounts, VertexTable};
@@ -202,6 +202,7 @@ pub fn build_blocks(
         tree,
         opts.treelet_height,
         opts.voxel_threshold,
+        opts.write.lod,
         block_size,
         opts.max_proxies(mesh.triangles.len()),
     )?;
@@ -302,7 +303,7 @@ fn metadata(
             Role::Leaf => counts.leaves += 1,
         }
     }
-    for d in &plan.lod {
+    for d in plan.lod.iter().filter(|_| plan.kinds.voxel) {
         match d.voxel {
             Voxel::Single(_) => counts.voxels_single += 1,
             Voxel::Six(_) => counts.voxels_six += 1,
@@ -327,6 +328,11 @@ fn metadata(
     let mut params: Vec<(String, String)> = tree.params().to_vec();
     params.push(("lod_sampling".into(), LOD_SAMPLING.into()));
     params.push(("voxel_threshold".into(), opts.voxel_threshold.to_string()));
+    // Recorded only off the default, so voxel-only files stay as they were.
+    if plan.kinds != LodKinds::VOXEL {
+        params.push(("lod_kinds".into(), plan.kinds.name().into()));
+        params.push(("rlod_fit".into(), RLOD_FIT.into()));
+    }
     params.push((
         "triangles_per_proxy".into(),
         opts.triangles_per_proxy.to_string(),

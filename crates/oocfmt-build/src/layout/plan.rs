@@ -4,7 +4,10 @@
 
 use std::collections::BTreeMap;
 
-use oocfmt::records::{TreeletBlockWriter, NODE_BASIC_LEN, NODE_LEAF_LEN, NODE_LOD_LEN, NO_PROXY};
+use oocfmt::records::{
+    LodKinds, Rlod, TreeletBlockWriter, NODE_BASIC_LEN, NODE_LEAF_LEN, NODE_LOD_LEN, NO_PROXY,
+    RLOD_LEN,
+};
 
 use super::LayoutError;
 use crate::kdtree::{KdNode, KdTree, NodeId};
@@ -94,6 +97,10 @@ pub(crate) struct TreePlan {
     pub blocks: Vec<PlannedBlock>,
     /// LOD data in arena order of the LOD nodes (indexed by [`NodeInfo::lod`]).
     pub lod: Vec<LodData>,
+    /// What the LOD entries hold.
+    pub kinds: LodKinds,
+    /// With R-LODs: the records, same index as `lod`.
+    pub rlods: Vec<Rlod>,
     /// The LOD nodes that got a proxy, in file order: position = proxy id. Coarse levels come
     /// first, so a cap on proxies keeps the ones that stand for the biggest subtrees.
     pub lod_order: Vec<NodeId>,
@@ -109,6 +116,20 @@ impl TreePlan {
 
     pub fn lod_data(&self, id: NodeId) -> Option<&LodData> {
         self.lod.get(self.info(id).lod)
+    }
+
+    pub fn rlod(&self, id: NodeId) -> Option<&Rlod> {
+        self.rlods.get(self.info(id).lod)
+    }
+
+    /// Bytes of a LOD node's entry in the LOD area.
+    pub fn lod_entry_bytes(&self, id: NodeId) -> usize {
+        let voxel = if self.kinds.voxel {
+            self.lod_data(id).map_or(0, |d| d.voxel.byte_len())
+        } else {
+            0
+        };
+        voxel + if self.kinds.rlod { RLOD_LEN } else { 0 }
     }
 }
 
@@ -143,8 +164,13 @@ pub(crate) struct PlanSpec<'a> {
 
 /// Where LOD nodes' data comes from.
 pub(crate) enum LodSource<'a> {
-    /// Ray-sampled against the tree's own subtrees.
-    Sample { mesh: &'a Mesh, threshold: f32 },
+    /// Ray-sampled against the tree's own subtrees (voxels and proxies) and, when `kinds`
+    /// has them, R-LOD planes fitted to them; the LOD entries hold `kinds`.
+    Sample {
+        mesh: &'a Mesh,
+        threshold: f32,
+        kinds: LodKinds,
+    },
     /// Computed elsewhere, by node.
     Given(&'a dyn Fn(NodeId) -> Option<LodData>),
 }
@@ -156,6 +182,7 @@ pub(crate) fn plan_tree(
     tree: &KdTree,
     treelet_height: u8,
     voxel_threshold: f32,
+    kinds: LodKinds,
     block_size: usize,
     max_proxies: usize,
 ) -> Result<TreePlan, LayoutError> {
@@ -172,6 +199,7 @@ pub(crate) fn plan_tree(
             lod: LodSource::Sample {
                 mesh,
                 threshold: voxel_threshold,
+                kinds,
             },
             external: &BTreeMap::new(),
         },
@@ -202,7 +230,15 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
     }
     let wants = |id: NodeId| proxied.get(id.index()).copied().unwrap_or(false);
     plan.lod = match &spec.lod {
-        LodSource::Sample { mesh, threshold } => {
+        LodSource::Sample {
+            mesh,
+            threshold,
+            kinds,
+        } => {
+            plan.kinds = *kinds;
+            if kinds.rlod {
+                plan.rlods = crate::lod::rlods(mesh, tree, &lod_nodes);
+            }
             crate::lod::compute_with(mesh, tree, &lod_nodes, *threshold, &wants)
         }
         LodSource::Given(given) => lod_nodes
@@ -398,7 +434,7 @@ fn make_treelet(tree: &KdTree, plan: &mut TreePlan, root: NodeId) -> usize {
         let span = match i.role {
             Role::Leaf => NODE_LEAF_LEN,
             Role::Lod => {
-                voxel_bytes += plan.lod_data(id).map_or(0, |d| d.voxel.byte_len());
+                voxel_bytes += plan.lod_entry_bytes(id);
                 NODE_LOD_LEN
             }
             Role::Basic => {

@@ -84,7 +84,21 @@ impl Encoder<'_> {
                     .cell
                     .half_diagonal_up()
                     .ok_or(LayoutError::SceneTooLarge)?;
-                let voxel_offset = self.w.push_voxel(&data.voxel);
+                // The LOD entry (spec §3): the voxel, then the R-LOD, as the file has them.
+                let voxel_at = self.plan.kinds.voxel.then(|| self.w.push_voxel(&data.voxel));
+                let rlod_at = match self.plan.kinds.rlod {
+                    true => Some(
+                        self.w.push_rlod(
+                            self.plan
+                                .rlod(id)
+                                .ok_or(LayoutError::Internal("a LOD node has no R-LOD"))?,
+                        ),
+                    ),
+                    false => None,
+                };
+                let voxel_offset = voxel_at
+                    .or(rlod_at)
+                    .ok_or(LayoutError::Internal("a LOD node has an empty LOD entry"))?;
                 self.w.push_node(&Node::Lod {
                     axis,
                     split,

@@ -10,10 +10,11 @@
 //! node costs O(rays × depth), not O(triangles).
 
 mod halton;
+pub mod rlod;
 mod sampling;
 mod totals;
 
-use oocfmt::records::{ProxyRecord, Sample, Voxel};
+use oocfmt::records::{ProxyRecord, Rlod, Sample, Voxel};
 use rayon::prelude::*;
 
 use crate::kdtree::{KdNode, KdTree, NodeId};
@@ -29,6 +30,30 @@ pub use sampling::{
 /// instead of traversing the tree: the lowest LOD levels are most of the work, and there a
 /// flat loop over a few prepared triangles beats pointer-chasing through a handful of nodes.
 pub const EACH_TRIANGLE_MAX: usize = 24;
+
+/// The value recorded under `rlod_fit` in the build parameters of files with R-LODs.
+pub const RLOD_FIT: &str = "area-weighted PCA of the triangles clipped to the cell (f64); \
+     deviation: largest vertex distance; expansion: deviation + radius/128";
+
+/// The R-LOD records of `nodes`, in the same order: each node's subtree triangles clipped to
+/// its cell and fitted by [`rlod::fit`]. Runs in parallel over the nodes; the result does not
+/// depend on the thread count.
+pub fn rlods(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId]) -> Vec<Rlod> {
+    let cells = cells_of(tree, nodes);
+    nodes
+        .par_iter()
+        .map(|&id| {
+            let cell = cells
+                .binary_search_by_key(&id, |&(n, _)| n)
+                .ok()
+                .and_then(|k| cells.get(k))
+                .map_or(Bounds::EMPTY, |&(_, c)| c);
+            // An unrepresentable radius fails the layout when the node is encoded.
+            let radius = cell.half_diagonal_up().unwrap_or(f32::MAX);
+            rlod::fit(mesh, &subtree_triangles(tree, id), cell).record(radius)
+        })
+        .collect()
+}
 
 /// The value recorded under `lod_sampling` in the build parameters: the method and the ray
 /// counts above (checked against them by a test).

@@ -210,6 +210,8 @@ pub fn build_chunk(
             lod: LodSource::Sample {
                 mesh: &mesh,
                 threshold: layout.voxel_threshold,
+                // `convert` builds R-LODs in core only.
+                kinds: oocfmt::records::LodKinds::VOXEL,
             },
             external: &external,
         },

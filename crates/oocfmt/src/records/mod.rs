@@ -3,6 +3,7 @@
 
 pub mod node;
 pub mod proxy;
+pub mod rlod;
 pub mod sample;
 pub mod treelet;
 pub mod triangle;
@@ -12,6 +13,7 @@ pub use node::{
     MAX_TREE_DEPTH, NODE_BASIC_LEN, NODE_LEAF_LEN, NODE_LOD_LEN, NO_PROXY,
 };
 pub use proxy::{ProxyRecord, PROXY_DIRECTIONS, PROXY_LEN};
+pub use rlod::{LodKinds, Rlod, RLOD_LEN};
 pub use sample::{Sample, Voxel};
 pub use treelet::{TreeletBlock, TreeletBlockWriter, TreeletSummary};
 pub use triangle::{Triangle, TriangleBlock, TriangleBlockWriter, Vertex};

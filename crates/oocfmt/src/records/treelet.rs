@@ -1,8 +1,10 @@
-//! Treelet blocks (spec §6.2): a table of treelet starts, a node area and a voxel area.
+//! Treelet blocks (spec §6.2): a table of treelet starts, a node area and a LOD area (voxels
+//! and, in files with R-LODs, R-LOD records).
 
 use std::ops::Range;
 
 use super::node::{Node, MAX_CHILD_UNITS};
+use super::rlod::{LodKinds, Rlod};
 use super::sample::Voxel;
 use crate::bytes::{u32_at, PutLe};
 use crate::error::{bad, Code, Error, Result};
@@ -15,6 +17,7 @@ pub struct TreeletBlock<'a> {
     starts: &'a [u8],
     nodes: &'a [u8],
     voxels: &'a [u8],
+    kinds: LodKinds,
 }
 
 /// What one pass over a treelet block found.
@@ -26,11 +29,18 @@ pub struct TreeletSummary {
     pub leaves: u64,
     pub voxels_single: u64,
     pub voxels_six: u64,
+    pub rlods: u64,
 }
 
 impl<'a> TreeletBlock<'a> {
-    /// Checks the header, the section sizes and the treelet start table.
+    /// Checks the header, the section sizes and the treelet start table of a block whose LOD
+    /// nodes carry voxels only (every 1.0 file).
     pub fn parse(raw: &'a [u8]) -> Result<Self> {
+        Self::parse_with(raw, LodKinds::VOXEL)
+    }
+
+    /// Like [`TreeletBlock::parse`], for a file whose LOD nodes carry `kinds`.
+    pub fn parse_with(raw: &'a [u8], kinds: LodKinds) -> Result<Self> {
         let c = Code::TreeletLayout;
         let count = u32_at(raw, 0, c)? as usize;
         let node_bytes = u32_at(raw, 4, c)? as usize;
@@ -55,6 +65,7 @@ impl<'a> TreeletBlock<'a> {
             starts: &raw[HEAD_LEN..nodes_at],
             nodes: &raw[nodes_at..nodes_at + node_bytes],
             voxels: &raw[nodes_at + node_bytes..],
+            kinds,
         };
         let mut prev: Option<u32> = None;
         for t in 0..count {
@@ -79,8 +90,13 @@ impl<'a> TreeletBlock<'a> {
         self.nodes
     }
 
+    /// The LOD area (spec §6.2; named for the voxels it held alone in 1.0).
     pub fn voxel_area(&self) -> &'a [u8] {
         self.voxels
+    }
+
+    pub fn lod_kinds(&self) -> LodKinds {
+        self.kinds
     }
 
     /// The node-area byte range of treelet `t`.
@@ -103,9 +119,26 @@ impl<'a> TreeletBlock<'a> {
         Node::decode(self.nodes, pos)
     }
 
-    /// The voxel of a LOD node.
+    /// The voxel of a LOD node, whose LOD entry starts at `voxel_offset`.
     pub fn voxel(&self, voxel_offset: u32) -> Result<Voxel> {
+        if !self.kinds.voxel {
+            return bad(Code::Voxel, "this file's LOD nodes carry no voxels");
+        }
         Voxel::decode(self.voxels, voxel_offset as usize)
+    }
+
+    /// The R-LOD record of a LOD node whose LOD entry starts at `voxel_offset`: after the voxel
+    /// in a file with both kinds (spec §6.4).
+    pub fn rlod(&self, voxel_offset: u32) -> Result<Rlod> {
+        if !self.kinds.rlod {
+            return bad(Code::Rlod, "this file's LOD nodes carry no R-LODs");
+        }
+        let skip = if self.kinds.voxel {
+            self.voxel(voxel_offset)?.byte_len()
+        } else {
+            0
+        };
+        Rlod::decode(self.voxels, voxel_offset as usize + skip)
     }
 
     /// Byte position of a child, from its parent's position and the stored offset.
@@ -172,9 +205,15 @@ impl<'a> TreeletBlock<'a> {
                     }
                     Node::Lod { voxel_offset, .. } => {
                         sum.lod_nodes += 1;
-                        match self.voxel(voxel_offset).map_err(|e| e.at(pos as u64))? {
-                            Voxel::Single(_) => sum.voxels_single += 1,
-                            Voxel::Six(_) => sum.voxels_six += 1,
+                        if self.kinds.voxel {
+                            match self.voxel(voxel_offset).map_err(|e| e.at(pos as u64))? {
+                                Voxel::Single(_) => sum.voxels_single += 1,
+                                Voxel::Six(_) => sum.voxels_six += 1,
+                            }
+                        }
+                        if self.kinds.rlod {
+                            self.rlod(voxel_offset).map_err(|e| e.at(pos as u64))?;
+                            sum.rlods += 1;
                         }
                     }
                     Node::Leaf { .. } => sum.leaves += 1,
@@ -241,6 +280,14 @@ impl TreeletBlockWriter {
     pub fn push_voxel(&mut self, voxel: &Voxel) -> u32 {
         let off = self.voxels.len() as u32;
         voxel.encode_into(&mut self.voxels);
+        off
+    }
+
+    /// Appends an R-LOD record; returns its offset in the LOD area. In a file with both kinds
+    /// it goes right after its node's voxel, and the node stores the voxel's offset.
+    pub fn push_rlod(&mut self, rlod: &Rlod) -> u32 {
+        let off = self.voxels.len() as u32;
+        rlod.encode_into(&mut self.voxels);
         off
     }
 
@@ -337,9 +384,55 @@ mod tests {
                 lod_nodes: 1,
                 leaves: 2,
                 voxels_single: 1,
-                voxels_six: 0
+                voxels_six: 0,
+                rlods: 0,
             })
         );
+    }
+
+    #[test]
+    fn lod_entries_hold_a_voxel_then_an_r_lod() {
+        let rlod = Rlod {
+            normal: [0.0, 1.0, 0.0],
+            offset: 0.25,
+            colour: [1, 2, 3],
+            deviation_code: 4,
+            expansion_code: 5,
+        };
+        for kinds in [LodKinds::RLOD, LodKinds::BOTH] {
+            let mut w = TreeletBlockWriter::new();
+            w.begin_treelet();
+            let at = if kinds.voxel {
+                let at = w.push_voxel(&Voxel::Single(Sample::pack([0.0, 0.0, 1.0], [1.0; 3])));
+                w.push_rlod(&rlod);
+                at
+            } else {
+                w.push_rlod(&rlod)
+            };
+            w.push_node(&Node::Lod {
+                axis: 1,
+                split: 0.0,
+                radius: 1.0,
+                left_present: true,
+                right_present: false,
+                child_treelet: 0,
+                child_block: 2,
+                voxel_offset: at,
+                proxy: 0,
+            });
+            let raw = w.finish();
+            let b = TreeletBlock::parse_with(&raw, kinds).map_err(|e| e.to_string());
+            let got = b.as_ref().map(|b| b.rlod(at).ok());
+            assert_eq!(got, Ok(Some(rlod)), "{kinds:?}");
+            let sum = b.and_then(|b| b.walk(|_, _, _| Ok(())).map_err(|e| e.to_string()));
+            assert_eq!(sum.map(|s| (s.rlods, s.voxels_single)), Ok((1, u64::from(kinds.voxel))));
+            if !kinds.voxel {
+                // R-LOD bytes read as a voxel and a record run past the area: refused.
+                let e = TreeletBlock::parse_with(&raw, LodKinds::BOTH)
+                    .and_then(|b| b.walk(|_, _, _| Ok(())));
+                assert!(e.is_err());
+            }
+        }
     }
 
     #[test]

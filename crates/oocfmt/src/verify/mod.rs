@@ -21,6 +21,7 @@ use crate::reader::{
     Limits, ReadOptions,
 };
 use crate::source::ByteSource;
+use crate::records::LodKinds;
 use crate::summary::{survey_block, BlockFacts};
 use crate::trailer::{Trailer, TRAILER_LEN};
 use crate::Checksums;
@@ -310,6 +311,7 @@ impl Verifier<'_> {
             .metadata
             .as_ref()
             .map(|m| m.schema.triangle_attributes());
+        let lod = LodKinds::of_header(&index.header);
         let done = AtomicU64::new(0);
         let src = self.src;
         let results: Vec<Option<Result<BlockFacts>>> = index
@@ -318,7 +320,7 @@ impl Verifier<'_> {
             .map(|e| {
                 let e = e.as_ref().filter(|e| e.stored_length > 0)?;
                 let r =
-                    read_block_data(src, e, &ropts).and_then(|raw| survey_block(e, &raw, attrs));
+                    read_block_data(src, e, &ropts).and_then(|raw| survey_block(e, &raw, attrs, lod));
                 progress(
                     done.fetch_add(u64::from(e.stored_length), Ordering::Relaxed)
                         + u64::from(e.stored_length),

@@ -7,6 +7,7 @@ use super::{Index, Verifier};
 use crate::directory::{BlockEntry, BlockKind};
 use crate::error::{Code, Result};
 use crate::header::{COMPAT_LOD_VOXELS, COMPAT_PROXIES};
+use crate::records::LodKinds;
 use crate::metadata::{Counts, TreeletRef};
 use crate::reader::{read_block_data, ReadOptions};
 use crate::records::{
@@ -145,7 +146,7 @@ pub(super) fn check(
                 continue;
             }
         };
-        let Ok(block) = TreeletBlock::parse(&raw) else {
+        let Ok(block) = TreeletBlock::parse_with(&raw, LodKinds::of_header(&index.header)) else {
             continue;
         };
         w.block(v, id, &e, &block);
@@ -244,6 +245,9 @@ impl Walk<'_> {
                         }
                     }
                     self.lod_radius(v, id, pos, cell, radius, inh.max_radius);
+                    if let Ok(r) = block.rlod(voxel_offset) {
+                        rlod_plane(v, id, pos, cell, radius, &r);
+                    }
                     let (lc, rc) = split_cell(v, id, pos, cell, axis, split);
                     let children = [(left_present, lc), (right_present, rc)];
                     self.lod_children(
@@ -484,6 +488,33 @@ impl Walk<'_> {
                 None,
             );
         }
+    }
+}
+
+/// Reports an R-LOD plane that misses its node's enclosing sphere: the plane is fitted through
+/// the centroid of the node's clipped triangles, which lies in the cell.
+fn rlod_plane(
+    v: &mut Verifier<'_>,
+    id: u32,
+    pos: usize,
+    cell: [[f64; 3]; 2],
+    radius: f32,
+    r: &crate::records::Rlod,
+) {
+    let centre_distance = (0..3)
+        .map(|a| f64::from(r.normal[a]) * (cell[0][a] + cell[1][a]) / 2.0)
+        .sum::<f64>()
+        - f64::from(r.offset);
+    let reach = f64::from(radius) * (1.0 + 1e-3) + 1e-30;
+    if centre_distance.abs() > reach {
+        v.note_code(
+            Code::Rlod,
+            format!(
+                "LOD node at {pos}: its R-LOD plane lies {:.3e} from the cell's centre, beyond the radius {radius}",
+                centre_distance.abs()
+            ),
+            Some(id),
+        );
     }
 }
 

@@ -103,6 +103,7 @@ fn opts(block_size_log2: u8, codec: Codec) -> WriteOptions {
     WriteOptions {
         block_size_log2,
         codec,
+        ..WriteOptions::default()
     }
 }
 
