@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
+use oocfmt_trace::blocks::LodKind;
 use oocfmt_trace::output::{write_pfm, write_png};
 use oocfmt_trace::render::{Endings, FrameStats, Image};
 use oocfmt_trace::{
@@ -29,6 +30,10 @@ pub struct Args {
     /// 0 renders full detail
     #[arg(long, default_value_t = 1.0)]
     pub poe: f32,
+    /// LOD representation to stop on: voxel (Áfra 2012) or rlod (planes, Yoon et al. 2006);
+    /// default: voxel when the file has voxels, else rlod. A kind the file lacks is an error
+    #[arg(long, value_parser = parse_lod_kind)]
+    pub lod: Option<LodKind>,
     /// Block cache: `async` (fetcher threads load blocks in the background, rays never wait
     /// and show coarser levels meanwhile; a single frame is rendered until every block it
     /// wants is loaded), `blocking` (a ray waits for every block it needs: the exact
@@ -123,6 +128,24 @@ pub(crate) fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
     }
 }
 
+/// A `--lod` for rendering: voxel or rlod.
+pub(crate) fn parse_lod_kind(s: &str) -> Result<LodKind, String> {
+    match s {
+        "voxel" => Ok(LodKind::Voxel),
+        "rlod" => Ok(LodKind::Rlod),
+        _ => Err(format!("`{s}`: expected voxel or rlod")),
+    }
+}
+
+/// Opens `model` stopping on `lod` (None: the file's default).
+pub(crate) fn open_scene(model: &Path, lod: Option<LodKind>) -> Result<Scene, CliError> {
+    let scene = Scene::open(model).map_err(cli_error)?;
+    match lod {
+        Some(l) => scene.with_lod(l).map_err(cli_error),
+        None => Ok(scene),
+    }
+}
+
 pub(crate) fn cli_error(e: TraceError) -> CliError {
     match e {
         TraceError::Format(e) => CliError::Format(e),
@@ -134,9 +157,10 @@ pub(crate) fn cli_error(e: TraceError) -> CliError {
             path: path.display().to_string(),
             source: std::io::Error::other(source.to_string()),
         },
-        e @ (TraceError::Camera(_) | TraceError::Options(_) | TraceError::Path { .. }) => {
-            CliError::Usage(e.to_string())
-        }
+        e @ (TraceError::Camera(_)
+        | TraceError::Options(_)
+        | TraceError::Path { .. }
+        | TraceError::LodKind { .. }) => CliError::Usage(e.to_string()),
     }
 }
 
@@ -152,11 +176,19 @@ impl Cache {
         let scene = if a.cache == "mmap" {
             None
         } else {
-            Some(Arc::new(Scene::open(&a.model).map_err(cli_error)?))
+            Some(Arc::new(open_scene(&a.model, a.lod)?))
         };
         let budget = usize::try_from(a.cache_mb << 20).unwrap_or(usize::MAX);
         let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
-        Cache::of_kind(&a.model, scene, &a.cache, budget, fetchers, a.read_ahead)
+        Cache::of_kind(
+            &a.model,
+            scene,
+            &a.cache,
+            budget,
+            fetchers,
+            a.read_ahead,
+            a.lod,
+        )
     }
 
     /// A cache of `kind` (`async`, `blocking` or `mmap`) over `scene`, or over the container
@@ -168,14 +200,15 @@ impl Cache {
         budget: usize,
         fetchers: usize,
         read_ahead: u8,
+        lod: Option<LodKind>,
     ) -> Result<(Arc<Scene>, Cache), CliError> {
         if kind == "mmap" {
-            let c = MmapCache::open(model, budget).map_err(cli_error)?;
+            let c = MmapCache::open_as(model, budget, lod).map_err(cli_error)?;
             return Ok((Arc::clone(c.scene()), Cache::Mmap(c)));
         }
         let scene = match scene {
             Some(s) => s,
-            None => Arc::new(Scene::open(model).map_err(cli_error)?),
+            None => Arc::new(open_scene(model, lod)?),
         };
         let cache = if kind == "blocking" {
             Cache::Blocking(BlockingCache::new(Arc::clone(&scene), budget))
@@ -212,7 +245,7 @@ struct FrameFigures {
     step_ms: f64,
     rays_per_second: f64,
     primary: Endings,
-    /// Primary rays that ended on a voxel or a proxy: coarser than full detail.
+    /// Primary rays that ended on a voxel, an R-LOD or a proxy: coarser than full detail.
     coarse_pixels: u64,
     blocks_requested: u64,
     blocks_loaded: u64,
@@ -242,7 +275,7 @@ impl FrameFigures {
             step_ms,
             rays_per_second: stats.rays_per_second,
             primary: stats.primary,
-            coarse_pixels: stats.primary.voxel + stats.primary.proxy,
+            coarse_pixels: stats.primary.voxel + stats.primary.rlod + stats.primary.proxy,
             blocks_requested: c.blocks_requested.saturating_sub(before.blocks_requested),
             blocks_loaded: c.blocks_loaded.saturating_sub(before.blocks_loaded),
             blocks_evicted: c.blocks_evicted.saturating_sub(before.blocks_evicted),
@@ -458,8 +491,8 @@ pub fn run(a: &Args) -> CliResult {
     }
     let _ = writeln!(
         out,
-        "primary rays: {} triangle, {} voxel, {} proxy, {} miss",
-        p.triangle, p.voxel, p.proxy, p.miss
+        "primary rays: {} triangle, {} voxel, {} R-LOD, {} proxy, {} miss",
+        p.triangle, p.voxel, p.rlod, p.proxy, p.miss
     );
     if stats.rays > stats.primary_rays || stats.spp > 1 {
         let _ = writeln!(

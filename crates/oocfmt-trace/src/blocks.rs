@@ -4,7 +4,9 @@
 //! block that decoded.
 
 use oocfmt::records::triangle::oct_decode;
-use oocfmt::records::{lod_child_treelets, Node, TreeletBlock, TriangleBlock, Voxel, NO_PROXY};
+use oocfmt::records::{
+    lod_child_treelets, Node, Rlod, TreeletBlock, TriangleBlock, Voxel, NO_PROXY,
+};
 use oocfmt::{Block, Code, Error, Result};
 
 /// No child in [`DNode::Inner`].
@@ -34,10 +36,47 @@ pub enum DNode {
     },
 }
 
+/// The LOD representation a traversal stops on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum LodKind {
+    /// Áfra's voxels: the ray ends on the node's cell.
+    Voxel,
+    /// Yoon's R-LODs: the ray meets the node's plane, or skips the node.
+    Rlod,
+}
+
+impl LodKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            LodKind::Voxel => "voxel",
+            LodKind::Rlod => "rlod",
+        }
+    }
+}
+
+/// An R-LOD decoded for the traversal: the plane `normal · x = offset`, its colour, and how
+/// far past the cell it still counts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plane {
+    pub normal: [f32; 3],
+    pub offset: f32,
+    pub colour: [f32; 3],
+    pub expansion: f32,
+}
+
+/// What a LOD node shows.
+#[derive(Clone, Copy, Debug)]
+pub enum Shown {
+    Voxel(Voxel),
+    Plane(Plane),
+}
+
 /// The rest of a LOD node, the part every ray crossing it reads: 16 bytes, four to a cache
 /// line.
 #[derive(Clone, Copy, Debug)]
 pub struct Lod {
+    /// The radius the LOD metric compares with t · C: the cell's enclosing radius for a voxel,
+    /// the R-LOD's error radius (spec §6.4) for a plane.
     pub radius: f32,
     /// Treelet indices in `child_block`, [`NONE`] for an empty child.
     pub left: u32,
@@ -48,7 +87,7 @@ pub struct Lod {
 /// What a LOD node shows when a ray stops there: read only then, so kept apart from [`Lod`].
 #[derive(Clone, Copy, Debug)]
 pub struct LodLook {
-    pub voxel: Voxel,
+    pub shown: Shown,
     pub proxy: Option<u32>,
 }
 
@@ -64,7 +103,18 @@ pub struct TreeletData {
 }
 
 impl TreeletData {
+    /// Decodes for voxels when the block's file has them, else for R-LODs.
     pub fn decode(block: &Block) -> Result<TreeletData> {
+        let kind = if block.lod.voxel {
+            LodKind::Voxel
+        } else {
+            LodKind::Rlod
+        };
+        Self::decode_as(block, kind)
+    }
+
+    /// Decodes the LOD nodes' `kind` (an error when the file lacks it).
+    pub fn decode_as(block: &Block, kind: LodKind) -> Result<TreeletData> {
         let tb = block.treelets()?;
         let slots = tb.node_area().len() / 8;
         // Node index by 8-byte unit; `walk` checks the preorder layout, so every child offset
@@ -123,6 +173,23 @@ impl TreeletData {
                     let [left, right] =
                         lod_child_treelets(child_treelet, [left_present, right_present])
                             .map(|t| t.unwrap_or(NONE));
+                    let in_block = |e: Error| e.at(pos as u64).in_block(block.id);
+                    let (radius, shown) = match kind {
+                        LodKind::Voxel => (
+                            radius,
+                            Shown::Voxel(tb.voxel(voxel_offset).map_err(in_block)?),
+                        ),
+                        LodKind::Rlod => {
+                            let r: Rlod = tb.rlod(voxel_offset).map_err(in_block)?;
+                            let plane = Plane {
+                                normal: r.normal,
+                                offset: r.offset,
+                                colour: r.colour_f32(),
+                                expansion: r.expansion(radius),
+                            };
+                            (r.error_radius(radius), Shown::Plane(plane))
+                        }
+                    };
                     lods.push(Lod {
                         radius,
                         left,
@@ -130,7 +197,7 @@ impl TreeletData {
                         child_block,
                     });
                     looks.push(LodLook {
-                        voxel: tb.voxel(voxel_offset).map_err(|e| e.in_block(block.id))?,
+                        shown,
                         proxy: (proxy != NO_PROXY).then_some(proxy),
                     });
                     DNode::Lod {

@@ -18,6 +18,13 @@ pub enum TraceError {
     Camera(String),
     #[error("render options: {0}")]
     Options(String),
+    /// The file's LOD nodes do not carry the LOD kind asked for.
+    #[error("{path}: its LOD nodes carry no {asked} (the file holds {holds}); convert it with --lod {asked} or --lod both")]
+    LodKind {
+        path: String,
+        asked: &'static str,
+        holds: &'static str,
+    },
     #[error("{path}: {message}")]
     Path { path: PathBuf, message: String },
 }

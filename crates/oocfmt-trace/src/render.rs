@@ -108,6 +108,8 @@ pub struct Image {
 pub struct Endings {
     pub triangle: u64,
     pub voxel: u64,
+    /// On an R-LOD plane.
+    pub rlod: u64,
     pub proxy: u64,
     pub miss: u64,
 }
@@ -116,6 +118,7 @@ impl Endings {
     fn add(&mut self, o: &Endings) {
         self.triangle += o.triangle;
         self.voxel += o.voxel;
+        self.rlod += o.rlod;
         self.proxy += o.proxy;
         self.miss += o.miss;
     }
@@ -203,6 +206,7 @@ pub fn render(
                                 match hit.surface {
                                     Surface::Triangle { .. } => endings.triangle += 1,
                                     Surface::Voxel(_) => endings.voxel += 1,
+                                    Surface::Plane { .. } => endings.rlod += 1,
                                     Surface::Proxy(_) => endings.proxy += 1,
                                 }
                                 depth.push(hit.t);

@@ -6,12 +6,14 @@ use oocfmt::metadata::Metadata;
 use oocfmt::records::ProxyRecord;
 use oocfmt::{ReadOptions, Reader};
 
-use crate::blocks::{TreeletData, TriangleData};
+use crate::blocks::{LodKind, TreeletData, TriangleData};
 use crate::error::TraceError;
 
 pub struct Scene {
     reader: Reader,
     attrs: u16,
+    /// The LOD representation the traversal stops on.
+    lod: LodKind,
     /// Loaded at open (the reader does it): a missing subtree always has something to show.
     proxies: Vec<ProxyRecord>,
 }
@@ -24,14 +26,44 @@ impl Scene {
         )?))
     }
 
+    /// A scene that stops on voxels when the file has them, else on R-LODs.
     pub fn from_reader(reader: Reader) -> Scene {
         let attrs = reader.metadata().schema.triangle_attributes();
         let proxies = reader.proxies().to_vec();
+        let lod = if reader.lod_kinds().voxel {
+            LodKind::Voxel
+        } else {
+            LodKind::Rlod
+        };
         Scene {
             reader,
             attrs,
+            lod,
             proxies,
         }
+    }
+
+    /// Stops on `lod`; an error when the file's LOD nodes do not carry it. Set it before any
+    /// block is loaded: blocks are decoded for one kind.
+    pub fn with_lod(mut self, lod: LodKind) -> Result<Scene, TraceError> {
+        let kinds = self.reader.lod_kinds();
+        let has = match lod {
+            LodKind::Voxel => kinds.voxel,
+            LodKind::Rlod => kinds.rlod,
+        };
+        if !has {
+            return Err(TraceError::LodKind {
+                path: self.reader.name().to_string(),
+                asked: lod.name(),
+                holds: kinds.name(),
+            });
+        }
+        self.lod = lod;
+        Ok(self)
+    }
+
+    pub fn lod(&self) -> LodKind {
+        self.lod
     }
 
     pub fn metadata(&self) -> &Metadata {
@@ -52,7 +84,7 @@ impl Scene {
 
     /// Reads, checks and decodes treelet block `id`.
     pub fn load_treelets(&self, id: u32) -> oocfmt::Result<TreeletData> {
-        TreeletData::decode(&self.reader.read_block(id)?)
+        TreeletData::decode_as(&self.reader.read_block(id)?, self.lod)
     }
 
     /// Reads, checks and decodes triangle block `id`.

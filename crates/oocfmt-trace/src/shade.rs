@@ -71,6 +71,7 @@ fn attributes(hit: &Hit, materials: &[Material]) -> ([f32; 3], [f32; 3]) {
             (albedo, n)
         }
         Surface::Voxel(s) | Surface::Proxy(s) => (s.colour(), s.normal()),
+        Surface::Plane { normal, colour } => (*colour, *normal),
     }
 }
 
@@ -169,7 +170,7 @@ impl<'a> Lighting<'a> {
                 .get(*triangle as usize)
                 .and_then(triangle_normal)
                 .map(|n| n.map(|c| c as f32)),
-            Surface::Voxel(_) | Surface::Proxy(_) => unit(normal),
+            Surface::Voxel(_) | Surface::Proxy(_) | Surface::Plane { .. } => unit(normal),
         };
         let g = facing(geometric.unwrap_or(back), ray.dir);
         (g, unit(normal).map_or(g, |n| facing(n, ray.dir)))

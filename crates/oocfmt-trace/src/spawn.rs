@@ -59,6 +59,7 @@ impl Origin {
                 None => back,
             },
             Surface::Voxel(s) | Surface::Proxy(s) => s.normal(),
+            Surface::Plane { normal, .. } => *normal,
         };
         let len = (0..3).map(|k| normal[k] * normal[k]).sum::<f32>().sqrt();
         let normal = if len > 0.0 && len.is_finite() {

@@ -6,9 +6,14 @@
 //!   entered through. C = poe · 2 tan(fov_y / 2) / image_height is the size of `poe` pixels per
 //!   unit of distance, so the test reads "the voxel's radius is at most `poe` pixels". `poe` 0
 //!   never stops (full detail).
+//! - With R-LODs (Yoon et al. 2006, §4.2) the same test uses the R-LOD's error radius, and a
+//!   ray that stops there meets the node's plane: a hit inside the ray's interval in the cell,
+//!   widened by the R-LOD's expansion, ends the ray with the plane's normal and colour; a miss
+//!   skips the node's subtree.
 //! - A child block that is not available ends the ray on the subtree's proxy (skipping the
 //!   subtree where the proxy sees nothing from the ray's direction) or, without a proxy, on
-//!   the node's voxel; a missing triangle block ends it on the last voxel met.
+//!   the node's voxel (or its plane, as above); a missing triangle block ends it on the last
+//!   voxel (or plane) met.
 //! - Triangle hits are not clipped to their leaf's cell: every leaf is tested with the ray's
 //!   current nearest distance, and a stacked subtree is skipped only when it starts beyond that
 //!   nearest hit. Split decisions are widened by a small positional tolerance, so a hit that
@@ -27,7 +32,7 @@ use rustc_hash::FxHashMap as HashMap;
 
 use oocfmt::records::{Sample, Voxel, MAX_TREE_DEPTH, PROXY_DIRECTIONS};
 
-use crate::blocks::{DNode, TreeletData, TriangleData, NONE};
+use crate::blocks::{DNode, Plane, Shown, TreeletData, TriangleData, NONE};
 use crate::cache::BlockCache;
 use crate::intersect::{major_axis, ray_box, Ray};
 use crate::scene::Scene;
@@ -42,6 +47,11 @@ pub enum Surface {
     },
     Voxel(Sample),
     Proxy(Sample),
+    /// An R-LOD plane: its unit normal and linear RGB colour.
+    Plane {
+        normal: [f32; 3],
+        colour: [f32; 3],
+    },
 }
 
 #[derive(Clone, Debug)]
@@ -50,7 +60,8 @@ pub struct Hit {
     pub t: f32,
     pub surface: Surface,
     /// The radius of the sphere enclosing the cell of the voxel or proxy the ray ended on
-    /// (half the cell's diagonal): secondary rays start beyond it. 0 for a triangle.
+    /// (half the cell's diagonal), or the error radius of the R-LOD: secondary rays start
+    /// beyond it. 0 for a triangle.
     pub radius: f32,
 }
 
@@ -166,14 +177,58 @@ struct LastVoxel<'m> {
     lod: u32,
     radius: f32,
     t: f32,
+    /// Where the ray leaves the node's cell.
+    t1: f32,
     axis: u8,
 }
 
 impl LastVoxel<'_> {
-    fn sample(&self, ray: &Ray) -> Option<Sample> {
+    /// What the node shows this ray, and where: its voxel at the cell's entry, or its plane's
+    /// hit (None when the plane is missed).
+    fn shown(&self, ray: &Ray) -> Option<(f32, Best<'static>)> {
         let look = self.data.looks.get(self.lod as usize)?;
-        Some(voxel_sample(&look.voxel, self.axis, ray))
+        shown(&look.shown, ray, self.t, self.t1, self.axis, self.radius)
     }
+}
+
+/// What a LOD node showing `shown` gives a ray crossing its cell in [t0, t1], entering through
+/// `axis`, and where; None when a plane is missed.
+fn shown(
+    shown: &Shown,
+    ray: &Ray,
+    t0: f32,
+    t1: f32,
+    axis: u8,
+    radius: f32,
+) -> Option<(f32, Best<'static>)> {
+    match shown {
+        Shown::Voxel(v) => Some((t0, Best::Voxel(voxel_sample(v, axis, ray), radius))),
+        Shown::Plane(p) => plane_hit(p, ray, t0, t1).map(|t| {
+            (
+                t,
+                Best::Plane {
+                    normal: p.normal,
+                    colour: p.colour,
+                    radius,
+                },
+            )
+        }),
+    }
+}
+
+/// Where the ray meets the plane within [t0, t1] widened by the plane's expansion (a distance
+/// in space, so over the direction's length in t), at t > 0; None for a miss or a ray
+/// parallel to the plane.
+fn plane_hit(p: &Plane, ray: &Ray, t0: f32, t1: f32) -> Option<f32> {
+    let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let denom = dot(p.normal, ray.dir);
+    if denom == 0.0 || !denom.is_finite() {
+        return None;
+    }
+    let t = (p.offset - dot(p.normal, ray.org)) / denom;
+    let len = dot(ray.dir, ray.dir).sqrt();
+    let widen = if len > 0.0 { p.expansion / len } else { 0.0 };
+    (t > 0.0 && t >= t0 - widen && t <= t1 + widen).then_some(t)
 }
 
 /// A subtree waiting on the stack: its treelet block and node, the ray's interval in its cell,
@@ -200,6 +255,11 @@ enum Best<'m> {
     /// A sample and the radius of its cell.
     Voxel(Sample, f32),
     Proxy(Sample, f32),
+    Plane {
+        normal: [f32; 3],
+        colour: [f32; 3],
+        radius: f32,
+    },
 }
 
 pub struct Tracer<'a> {
@@ -341,6 +401,7 @@ impl<'a> Tracer<'a> {
                             lod,
                             radius: l.radius,
                             t: t0,
+                            t1,
                             axis,
                         });
                         let stop = self.lod_c > 0.0 && l.radius <= t0 * self.lod_c;
@@ -353,8 +414,9 @@ impl<'a> Tracer<'a> {
                             let Some(look) = data.looks.get(lod as usize) else {
                                 break;
                             };
-                            let shown = if stop {
-                                Some(Best::Voxel(voxel_sample(&look.voxel, axis, ray), l.radius))
+                            let own = || shown(&look.shown, ray, t0, t1, axis, l.radius);
+                            let found = if stop {
+                                own()
                             } else {
                                 memo.want(l.child_block, l.radius, t0);
                                 // A proxy that sees nothing in the ray's direction skips the
@@ -362,15 +424,12 @@ impl<'a> Tracer<'a> {
                                 match look.proxy.and_then(|p| self.proxies.get(p as usize)) {
                                     Some(p) => Some(proxy_sample(&p.samples, ray))
                                         .filter(|s| !s.is_empty())
-                                        .map(|s| Best::Proxy(s, l.radius)),
-                                    None => Some(Best::Voxel(
-                                        voxel_sample(&look.voxel, axis, ray),
-                                        l.radius,
-                                    )),
+                                        .map(|s| (t0, Best::Proxy(s, l.radius))),
+                                    None => own(),
                                 }
                             };
-                            if let Some(s) = shown.filter(|_| t0 < best_t) {
-                                best_t = t0;
+                            if let Some((t, s)) = found.filter(|&(t, _)| t < best_t) {
+                                best_t = t;
                                 best = s;
                             }
                             break;
@@ -425,9 +484,10 @@ impl<'a> Tracer<'a> {
                             None => match last {
                                 Some(lv) => {
                                     memo.want(block, lv.radius, lv.t);
-                                    if let Some(s) = lv.sample(ray).filter(|_| lv.t < best_t) {
-                                        best_t = lv.t;
-                                        best = Best::Voxel(s, lv.radius);
+                                    if let Some((t, s)) = lv.shown(ray).filter(|&(t, _)| t < best_t)
+                                    {
+                                        best_t = t;
+                                        best = s;
                                     }
                                 }
                                 None => memo.want(block, f32::INFINITY, t0),
@@ -455,6 +515,11 @@ impl<'a> Tracer<'a> {
             ),
             Best::Voxel(s, r) => (Surface::Voxel(s), r),
             Best::Proxy(s, r) => (Surface::Proxy(s), r),
+            Best::Plane {
+                normal,
+                colour,
+                radius,
+            } => (Surface::Plane { normal, colour }, radius),
         };
         Some(Hit {
             t: best_t,

@@ -11,9 +11,7 @@ use crate::header::{
 };
 use crate::metadata::Metadata;
 use crate::records::triangle::ATTR_MATERIALS;
-use crate::records::{
-    LodKinds, Node, ProxyRecord, TreeletBlock, TreeletSummary, TriangleBlock,
-};
+use crate::records::{LodKinds, Node, ProxyRecord, TreeletBlock, TreeletSummary, TriangleBlock};
 use crate::Reader;
 
 /// What one block holds, found by decoding it and checking its framing.

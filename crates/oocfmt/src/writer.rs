@@ -14,8 +14,8 @@ use crate::header::{
     Header, SectionTable, COMPAT_LOD_VOXELS, COMPAT_PROXIES, DEFAULT_BLOCK_SIZE_LOG2, HEADER_LEN,
     MAX_BLOCK_SIZE_LOG2, MIN_BLOCK_SIZE_LOG2, OFF_HEADER_CRC, VERSION_MINOR,
 };
-use crate::records::LodKinds;
 use crate::metadata::Metadata;
+use crate::records::LodKinds;
 use crate::trailer::Trailer;
 
 /// The file under construction. `sync` must make everything written durable.

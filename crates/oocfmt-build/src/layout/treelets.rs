@@ -85,7 +85,11 @@ impl Encoder<'_> {
                     .half_diagonal_up()
                     .ok_or(LayoutError::SceneTooLarge)?;
                 // The LOD entry (spec §3): the voxel, then the R-LOD, as the file has them.
-                let voxel_at = self.plan.kinds.voxel.then(|| self.w.push_voxel(&data.voxel));
+                let voxel_at = self
+                    .plan
+                    .kinds
+                    .voxel
+                    .then(|| self.w.push_voxel(&data.voxel));
                 let rlod_at = match self.plan.kinds.rlod {
                     true => Some(
                         self.w.push_rlod(

@@ -132,9 +132,21 @@ pub fn fit(mesh: &Mesh, tris: &[u32], cell: Bounds) -> PlaneFit {
         let mean = m.first.map(|f| f / m.area);
         let s = m.second.map(|x| x / m.area);
         let cov = [
-            [s[0] - mean[0] * mean[0], s[1] - mean[0] * mean[1], s[2] - mean[0] * mean[2]],
-            [s[1] - mean[0] * mean[1], s[3] - mean[1] * mean[1], s[4] - mean[1] * mean[2]],
-            [s[2] - mean[0] * mean[2], s[4] - mean[1] * mean[2], s[5] - mean[2] * mean[2]],
+            [
+                s[0] - mean[0] * mean[0],
+                s[1] - mean[0] * mean[1],
+                s[2] - mean[0] * mean[2],
+            ],
+            [
+                s[1] - mean[0] * mean[1],
+                s[3] - mean[1] * mean[1],
+                s[4] - mean[1] * mean[2],
+            ],
+            [
+                s[2] - mean[0] * mean[2],
+                s[4] - mean[1] * mean[2],
+                s[5] - mean[2] * mean[2],
+            ],
         ];
         (mean, smallest_eigenvector(cov))
     } else {
@@ -147,7 +159,13 @@ pub fn fit(mesh: &Mesh, tris: &[u32], cell: Bounds) -> PlaneFit {
     };
     // Face the way the mesh's triangles do; a tie picks a positive major component.
     let along = dot(normal, m.oriented);
-    let major = (0..3).fold(0, |b, k| if normal[k].abs() > normal[b].abs() { k } else { b });
+    let major = (0..3).fold(0, |b, k| {
+        if normal[k].abs() > normal[b].abs() {
+            k
+        } else {
+            b
+        }
+    });
     let flip = along < 0.0 || (along == 0.0 && normal[major] < 0.0);
     let normal = if flip { normal.map(|c| -c) } else { normal };
     let mut plane = PlaneFit {

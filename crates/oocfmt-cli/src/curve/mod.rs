@@ -14,20 +14,20 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
+use oocfmt_trace::blocks::LodKind;
 use oocfmt_trace::compare::{Accumulator, ImageError};
 use oocfmt_trace::render::Endings;
 use oocfmt_trace::{BlockingCache, Camera, Image, RenderOptions, Scene};
 
 use crate::error::{CliError, CliResult};
 use crate::render::{
-    cli_error, frame, settle, still_camera, stored_cameras, use_threads, write_json, Cache, View,
+    cli_error, frame, open_scene, settle, still_camera, stored_cameras, use_threads, write_json,
+    Cache, View,
 };
 use touched::Touched;
 
 /// The JSON schema of `--json`.
 pub const SCHEMA: &str = "oocfmt-curve/1";
-/// The level-of-detail representation measured (R-LOD planes are another, later).
-const LOD: &str = "voxel";
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -40,6 +40,10 @@ pub struct Args {
     /// needs a container converted with `--codec none`)
     #[arg(long, default_value = "async", value_delimiter = ',', value_parser = ["async", "blocking", "mmap"])]
     pub cache: Vec<String>,
+    /// LOD representations to compare, comma-separated (one series each with every cache):
+    /// voxel, rlod; each must be in the file (`convert --lod both` holds both)
+    #[arg(long, default_value = "voxel", value_delimiter = ',', value_parser = crate::render::parse_lod_kind)]
+    pub lod: Vec<LodKind>,
     #[command(flatten)]
     pub view: View,
     /// A walkthrough (as for `render --path`) instead of one view: every figure is over all
@@ -117,7 +121,7 @@ fn parse_plot_path(s: &str) -> Result<PathBuf, String> {
     }
 }
 
-/// One (cache, PoE) measurement.
+/// One (LOD kind, cache, PoE) measurement.
 #[derive(Serialize)]
 pub struct Row {
     pub cache: String,
@@ -165,6 +169,7 @@ struct Reference {
 
 /// A measurement's images of the first camera, for the sheet.
 pub struct Shot {
+    /// The series: cache, and the LOD kind when several are compared.
     pub cache: String,
     pub poe: f32,
     pub ms: f64,
@@ -186,7 +191,28 @@ pub fn run(a: &Args) -> CliResult {
         Some(p) => Some(oocfmt_trace::walk::read_path(p, w, h).map_err(cli_error)?),
         None => None,
     };
-    let scene = Arc::new(Scene::open(&a.model).map_err(cli_error)?);
+    let mut lods: Vec<LodKind> = Vec::new();
+    for &l in &a.lod {
+        if lods.contains(&l) {
+            return Err(CliError::Usage(format!(
+                "--lod: `{}` is listed twice",
+                l.name()
+            )));
+        }
+        lods.push(l);
+    }
+    // Every kind is checked before anything is rendered. The reference does not depend on the
+    // kind: PoE 0 never stops on a LOD node.
+    let scenes = lods
+        .iter()
+        .map(|&l| Ok((l, Arc::new(open_scene(&a.model, Some(l))?))))
+        .collect::<Result<Vec<_>, CliError>>()?;
+    let Some((_, scene)) = scenes.first() else {
+        return Err(CliError::Usage(
+            "--lod: expected at least one kind".to_string(),
+        ));
+    };
+    let scene = Arc::clone(scene);
     let cameras = match path_cameras {
         Some(c) => stored_cameras(&scene, c),
         None => vec![still_camera(&scene, &a.view)],
@@ -195,31 +221,39 @@ pub fn run(a: &Args) -> CliResult {
     let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
     if kinds.contains(&"mmap") {
         // A container mmap cannot map is refused before any rendering.
-        Cache::of_kind(&a.model, None, "mmap", budget, fetchers, a.read_ahead)?;
+        Cache::of_kind(&a.model, None, "mmap", budget, fetchers, a.read_ahead, None)?;
     }
     let (references, reference) = render_reference(&scene, &cameras)?;
     let mut rows = Vec::new();
     let mut shots = Vec::new();
-    for kind in &kinds {
-        for &poe in &a.poe.0 {
-            // A fresh cache per measurement, so each working set is the PoE's own.
-            let (_, cache) = Cache::of_kind(
-                &a.model,
-                Some(Arc::clone(&scene)),
-                kind,
-                budget,
-                fetchers,
-                a.read_ahead,
-            )?;
-            let (row, image) = measure(a, &scene, &cache, kind, poe, &cameras, &references)?;
-            shots.push(Shot {
-                cache: row.cache.clone(),
-                poe,
-                ms: row.ms,
-                psnr_db: row.error.psnr_db,
-                image,
-            });
-            rows.push(row);
+    for (lod, lod_scene) in &scenes {
+        for kind in &kinds {
+            for &poe in &a.poe.0 {
+                // A fresh cache per measurement, so each working set is the PoE's own.
+                let (scene, cache) = Cache::of_kind(
+                    &a.model,
+                    Some(Arc::clone(lod_scene)),
+                    kind,
+                    budget,
+                    fetchers,
+                    a.read_ahead,
+                    Some(*lod),
+                )?;
+                let (row, image) =
+                    measure(a, &scene, &cache, (kind, *lod), poe, &cameras, &references)?;
+                shots.push(Shot {
+                    cache: if scenes.len() > 1 {
+                        format!("{} {}", row.cache, row.lod)
+                    } else {
+                        row.cache.clone()
+                    },
+                    poe,
+                    ms: row.ms,
+                    psnr_db: row.error.psnr_db,
+                    image,
+                });
+                rows.push(row);
+            }
         }
     }
     print_table(a, &cameras, &reference, &rows);
@@ -275,6 +309,7 @@ fn render_reference(
 fn add_endings(sum: &mut Endings, e: &Endings) {
     sum.triangle += e.triangle;
     sum.voxel += e.voxel;
+    sum.rlod += e.rlod;
     sum.proxy += e.proxy;
     sum.miss += e.miss;
 }
@@ -285,7 +320,7 @@ fn measure(
     a: &Args,
     scene: &Scene,
     cache: &Cache,
-    kind: &str,
+    (kind, lod): (&str, LodKind),
     poe: f32,
     cameras: &[Camera],
     references: &[Image],
@@ -334,7 +369,7 @@ fn measure(
     let frames = cameras.len().max(1) as f64;
     let row = Row {
         cache: kind.to_string(),
-        lod: LOD,
+        lod: lod.name(),
         poe,
         settle_frames,
         ms: median_pass / frames,
@@ -368,7 +403,7 @@ fn print_table(a: &Args, cameras: &[Camera], reference: &Reference, rows: &[Row]
     let _ = writeln!(
         out,
         "{}: {w}x{h}, {} camera(s), {} threads; warm caches, median of {} timed frame(s); \
-         error against PoE 0 with a blocking cache ({:.1} ms cold); lod {LOD}",
+         error against PoE 0 with a blocking cache ({:.1} ms cold)",
         a.model.display(),
         cameras.len(),
         rayon::current_num_threads(),
@@ -377,20 +412,21 @@ fn print_table(a: &Args, cameras: &[Camera], reference: &Reference, rows: &[Row]
     );
     let _ = writeln!(
         out,
-        "{:<8} {:>5} {:>9} {:>8} {:>9} {:>8} {:>7} {:>6} {:>6} {:>6} {:>6} {:>7} {:>6} {:>7} {:>7} {:>8} {:>9} {:>9}",
-        "cache", "poe", "ms", "Mrays/s", "nodes/ray", "WS MiB", "blocks", "tri%", "voxel%",
-        "proxy%", "miss%", "RMSE", "PSNR", "SSIM", format!("<={}%", a.tolerance), "hit/miss",
+        "{:<8} {:<5} {:>5} {:>9} {:>8} {:>9} {:>8} {:>7} {:>6} {:>6} {:>6} {:>6} {:>6} {:>7} {:>6} {:>7} {:>7} {:>8} {:>9} {:>9}",
+        "cache", "lod", "poe", "ms", "Mrays/s", "nodes/ray", "WS MiB", "blocks", "tri%", "voxel%",
+        "rlod%", "proxy%", "miss%", "RMSE", "PSNR", "SSIM", format!("<={}%", a.tolerance), "hit/miss",
         "depth med", "depth max"
     );
     for r in rows {
         let p = &r.primary;
-        let n = (p.triangle + p.voxel + p.proxy + p.miss).max(1) as f64;
+        let n = (p.triangle + p.voxel + p.rlod + p.proxy + p.miss).max(1) as f64;
         let pct = |x: u64| 100.0 * x as f64 / n;
         let e = &r.error;
         let _ = writeln!(
             out,
-            "{:<8} {:>5} {:>9.2} {:>8.2} {:>9.1} {:>8.1} {:>7} {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>7.3} {:>6} {:>7.4} {:>7.2} {:>8} {:>9.2e} {:>9.2e}",
+            "{:<8} {:<5} {:>5} {:>9.2} {:>8.2} {:>9.1} {:>8.1} {:>7} {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>7.3} {:>6} {:>7.4} {:>7.2} {:>8} {:>9.2e} {:>9.2e}",
             r.cache,
+            r.lod,
             r.poe,
             r.ms,
             r.rays_per_second / 1e6,
@@ -399,6 +435,7 @@ fn print_table(a: &Args, cameras: &[Camera], reference: &Reference, rows: &[Row]
             r.blocks_touched,
             pct(p.triangle),
             pct(p.voxel),
+            pct(p.rlod),
             pct(p.proxy),
             pct(p.miss),
             e.rmse,

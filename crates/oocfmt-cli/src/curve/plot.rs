@@ -105,17 +105,18 @@ fn draw<DB: DrawingBackend>(
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 16))
         .draw()?;
-    let mut caches: Vec<&str> = Vec::new();
+    // One series per cache and LOD kind.
+    let mut series: Vec<(&str, &str)> = Vec::new();
     for r in rows {
-        if !caches.contains(&r.cache.as_str()) {
-            caches.push(&r.cache);
+        if !series.contains(&(r.cache.as_str(), r.lod)) {
+            series.push((&r.cache, r.lod));
         }
     }
-    for (i, cache) in caches.iter().enumerate() {
+    for (i, &(cache, lod)) in series.iter().enumerate() {
         let colour = Palette99::pick(i).to_rgba();
         let mut points: Vec<(f64, f64, f32)> = rows
             .iter()
-            .filter(|r| r.cache == *cache)
+            .filter(|r| r.cache == cache && r.lod == lod)
             .map(|r| (finite(r.error.rmse), finite(r.ms), r.poe))
             .collect();
         points.sort_by(|a, b| a.2.total_cmp(&b.2));
@@ -124,7 +125,7 @@ fn draw<DB: DrawingBackend>(
                 points.iter().map(|p| (p.0, p.1)),
                 colour.stroke_width(2),
             ))?
-            .label(format!("{cache} (voxel)"))
+            .label(format!("{cache} ({lod})"))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
         chart.draw_series(points.iter().map(|&(x, y, poe)| {
             EmptyElement::at((x, y))

@@ -22,6 +22,15 @@ impl MmapCache {
     /// Maps `path` and checks that its treelet and triangle blocks are stored uncompressed.
     /// Decoded blocks are kept up to `budget_bytes`, least recently used evicted beyond.
     pub fn open(path: &Path, budget_bytes: usize) -> Result<MmapCache, TraceError> {
+        Self::open_as(path, budget_bytes, None)
+    }
+
+    /// Like [`MmapCache::open`], stopping on `lod` (None: the scene's default).
+    pub fn open_as(
+        path: &Path,
+        budget_bytes: usize,
+        lod: Option<crate::blocks::LodKind>,
+    ) -> Result<MmapCache, TraceError> {
         let reader = Reader::open_mmap(path, ReadOptions::default())?;
         let compressed = reader
             .entries()
@@ -37,7 +46,11 @@ impl MmapCache {
                 path.display()
             )));
         }
-        let scene = Arc::new(Scene::from_reader(reader));
+        let scene = Scene::from_reader(reader);
+        let scene = Arc::new(match lod {
+            Some(l) => scene.with_lod(l)?,
+            None => scene,
+        });
         Ok(MmapCache {
             inner: BlockingCache::with_mode(scene, budget_bytes, "mmap"),
         })

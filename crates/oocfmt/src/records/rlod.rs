@@ -173,11 +173,16 @@ impl Rlod {
         if (len2 - 1.0).abs() > RLOD_NORMAL_TOLERANCE {
             return bad(
                 c,
-                format!("R-LOD record at {at}: normal {normal:?} is not a unit vector (|n|² = {len2})"),
+                format!(
+                    "R-LOD record at {at}: normal {normal:?} is not a unit vector (|n|² = {len2})"
+                ),
             );
         }
         if word >> 24 != 0 || u16_at(area, at + 22, c)? != 0 {
-            return bad(c, format!("R-LOD record at {at}: reserved bytes are not zero"));
+            return bad(
+                c,
+                format!("R-LOD record at {at}: reserved bytes are not zero"),
+            );
         }
         let [r, g, b, _] = word.to_le_bytes();
         let [dev, exp, _, _] = codes.to_le_bytes();
@@ -246,7 +251,10 @@ mod tests {
         let r = 2.0f32;
         for dev in [0.0, 1e-9, 0.01, 0.5, 1.0, 3.99, 4.0] {
             let code = Rlod::code_for(dev, f64::from(r));
-            assert!(f64::from(Rlod::decode_code(code, r)) >= dev * (1.0 - 1e-6), "{dev}");
+            assert!(
+                f64::from(Rlod::decode_code(code, r)) >= dev * (1.0 - 1e-6),
+                "{dev}"
+            );
         }
         assert_eq!(Rlod::code_for(f64::NAN, 1.0), 0);
         assert_eq!(Rlod::code_for(1.0, 0.0), 0);
@@ -255,14 +263,20 @@ mod tests {
             deviation_code: 0,
             ..sample()
         };
-        assert!(flat.error_radius(r) >= r && flat.error_radius(r) <= f32::from_bits(r.to_bits() + 1));
+        assert!(
+            flat.error_radius(r) >= r && flat.error_radius(r) <= f32::from_bits(r.to_bits() + 1)
+        );
         let rough = Rlod {
             deviation_code: 255,
             ..sample()
         };
         // δ = 2r: cbrt(1 + 3) r.
         let want = 4f32.cbrt() * r;
-        assert!((rough.error_radius(r) - want).abs() < 1e-5, "{}", rough.error_radius(r));
+        assert!(
+            (rough.error_radius(r) - want).abs() < 1e-5,
+            "{}",
+            rough.error_radius(r)
+        );
     }
 
     #[test]

@@ -425,7 +425,10 @@ mod tests {
             let got = b.as_ref().map(|b| b.rlod(at).ok());
             assert_eq!(got, Ok(Some(rlod)), "{kinds:?}");
             let sum = b.and_then(|b| b.walk(|_, _, _| Ok(())).map_err(|e| e.to_string()));
-            assert_eq!(sum.map(|s| (s.rlods, s.voxels_single)), Ok((1, u64::from(kinds.voxel))));
+            assert_eq!(
+                sum.map(|s| (s.rlods, s.voxels_single)),
+                Ok((1, u64::from(kinds.voxel)))
+            );
             if !kinds.voxel {
                 // R-LOD bytes read as a voxel and a record run past the area: refused.
                 let e = TreeletBlock::parse_with(&raw, LodKinds::BOTH)

@@ -20,8 +20,8 @@ use crate::reader::{
     read_block_data, read_metadata, read_trailer, read_vec, root_checksum, short_file_error,
     Limits, ReadOptions,
 };
-use crate::source::ByteSource;
 use crate::records::LodKinds;
+use crate::source::ByteSource;
 use crate::summary::{survey_block, BlockFacts};
 use crate::trailer::{Trailer, TRAILER_LEN};
 use crate::Checksums;
@@ -319,8 +319,8 @@ impl Verifier<'_> {
             .par_iter()
             .map(|e| {
                 let e = e.as_ref().filter(|e| e.stored_length > 0)?;
-                let r =
-                    read_block_data(src, e, &ropts).and_then(|raw| survey_block(e, &raw, attrs, lod));
+                let r = read_block_data(src, e, &ropts)
+                    .and_then(|raw| survey_block(e, &raw, attrs, lod));
                 progress(
                     done.fetch_add(u64::from(e.stored_length), Ordering::Relaxed)
                         + u64::from(e.stored_length),

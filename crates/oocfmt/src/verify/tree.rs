@@ -7,9 +7,9 @@ use super::{Index, Verifier};
 use crate::directory::{BlockEntry, BlockKind};
 use crate::error::{Code, Result};
 use crate::header::{COMPAT_LOD_VOXELS, COMPAT_PROXIES};
-use crate::records::LodKinds;
 use crate::metadata::{Counts, TreeletRef};
 use crate::reader::{read_block_data, ReadOptions};
+use crate::records::LodKinds;
 use crate::records::{
     lod_child_treelets, Node, TreeletBlock, MAX_TREE_DEPTH as MAX_DEPTH, NO_PROXY,
 };
