@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use oocfmt::metadata::Material;
+use oocfmt::records::LodKinds;
 use oocfmt::{Codec, WriteOptions};
 
 use crate::kdtree::{build, KdBuildOptions, KdError, KdNode, KdTree, NodeId};
@@ -17,7 +18,7 @@ pub const VECTOR_BLOCK_SIZE: u64 = 4096;
 /// A fixed generator name: a version number here would change the vectors on every release.
 pub const VECTOR_GENERATOR: &str = "oocfmt-build spec vectors";
 /// The vector names, in the order [`write_vectors`] writes them.
-pub const VECTOR_NAMES: [&str; 4] = ["quad", "lod-none", "lod-lz4", "lod-zstd"];
+pub const VECTOR_NAMES: [&str; 5] = ["quad", "lod-none", "lod-lz4", "lod-zstd", "lod-rlod"];
 
 #[derive(Debug, thiserror::Error)]
 pub enum VectorError {
@@ -50,6 +51,9 @@ pub fn write_vectors(dir: &Path) -> Result<Vec<PathBuf>, VectorError> {
         write_lod(&path, codec)?;
         out.push(path);
     }
+    let path = dir.join("lod-rlod.oocf");
+    write_lod_kinds(&path, Codec::None, LodKinds::BOTH)?;
+    out.push(path);
     Ok(out)
 }
 
@@ -203,9 +207,16 @@ pub fn lod_tree(mesh: &Mesh) -> Result<KdTree, KdError> {
 }
 
 pub fn write_lod(path: &Path, codec: Codec) -> Result<(), VectorError> {
+    write_lod_kinds(path, codec, LodKinds::VOXEL)
+}
+
+/// The LOD vector with LOD nodes carrying `kinds` (spec §6.4).
+pub fn write_lod_kinds(path: &Path, codec: Codec, kinds: LodKinds) -> Result<(), VectorError> {
     let mesh = lod_mesh();
     let tree = lod_tree(&mesh)?;
-    write_container(path, &mesh, &tree, &vector_options(codec)?)?;
+    let mut opts = vector_options(codec)?;
+    opts.write.lod = kinds;
+    write_container(path, &mesh, &tree, &opts)?;
     Ok(())
 }
 
@@ -339,7 +350,15 @@ mod tests {
                 "{name}"
             );
             assert_eq!(m.materials.len(), 2);
-            assert!(r.file_len() < 8192, "{name} is {} bytes", r.file_len());
+            let (lod, minor) = if name == "lod-rlod" {
+                (oocfmt::records::LodKinds::BOTH, 1)
+            } else {
+                (oocfmt::records::LodKinds::VOXEL, 0)
+            };
+            assert_eq!((r.lod_kinds(), r.header().minor), (lod, minor), "{name}");
+            // The R-LOD vector adds a 24-byte record to each of its LOD nodes.
+            let most = if name == "lod-rlod" { 12288 } else { 8192 };
+            assert!(r.file_len() < most, "{name} is {} bytes", r.file_len());
             let want = match name {
                 "lod-lz4" => CodecId::Lz4,
                 "lod-zstd" => CodecId::Zstd,

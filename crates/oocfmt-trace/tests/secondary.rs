@@ -312,6 +312,7 @@ fn facing_normal(hit: &oocfmt_trace::traverse::Hit, ray: &Ray) -> [f32; 3] {
                 .map(|c| c as f32)
         }
         Surface::Voxel(s) | Surface::Proxy(s) => s.normal(),
+        Surface::Plane { normal, .. } => *normal,
     };
     let d: f32 = (0..3).map(|k| n[k] * ray.dir[k]).sum();
     if d > 0.0 {

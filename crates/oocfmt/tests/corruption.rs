@@ -704,9 +704,10 @@ fn a_newer_major_version_is_refused_and_named() -> TestResult {
                 f.name
             );
             let msg = e.map(|e| e.to_string()).unwrap_or_default();
+            let minor = get_u32(&b, header::OFF_MINOR) & 0xffff;
             assert!(
-                msg.contains(&format!("{major}.0")),
-                "{}: message does not name version {major}.0: {msg}",
+                msg.contains(&format!("{major}.{minor}")),
+                "{}: message does not name version {major}.{minor}: {msg}",
                 f.name
             );
             let r = verify_bytes(&b, &deep())?;
@@ -721,7 +722,7 @@ fn a_newer_major_version_is_refused_and_named() -> TestResult {
             assert!(
                 r.issues
                     .iter()
-                    .all(|i| i.message.contains(&format!("{major}.0"))),
+                    .all(|i| i.message.contains(&format!("{major}.{minor}"))),
                 "{}",
                 f.name
             );
@@ -1695,5 +1696,81 @@ fn a_short_file_of_another_major_version_is_named_as_such() -> TestResult {
         .err()
         .map(|e| e.code());
     assert_eq!(e, Some(Code::FileTooSmall), "too short to hold the version");
+    Ok(())
+}
+
+/// Byte offset of the first R-LOD record of block 0 of `lod-rlod.oocf` (uncompressed, both LOD
+/// kinds: the record follows its node's voxel).
+fn first_rlod(b: &[u8]) -> usize {
+    let t = get_u64(b, entry_at(b, 0)) as usize;
+    let (count, nodes, lod) = (
+        get_u32(b, t) as usize,
+        get_u32(b, t + 4) as usize,
+        get_u32(b, t + 8) as usize,
+    );
+    assert!(lod > 0, "block 0 has no LOD entries");
+    let area = t + 16 + 4 * count + nodes;
+    let voxel = if get_u32(b, area) >> 31 == 1 { 4 } else { 24 };
+    area + voxel
+}
+
+#[test]
+fn bad_r_lod_records_are_refused() -> TestResult {
+    let v = "lod-rlod.oocf";
+    let at = first_rlod(&file(v)?);
+    let cases: Vec<(&str, Edit, Code, Depth)> = vec![
+        (
+            "NaN normal",
+            Box::new(move |b: &mut Vec<u8>| put_u32(b, at, f32::NAN.to_bits())),
+            Code::Rlod,
+            Depth::Full,
+        ),
+        (
+            "infinite offset",
+            Box::new(move |b: &mut Vec<u8>| put_u32(b, at + 12, f32::INFINITY.to_bits())),
+            Code::Rlod,
+            Depth::Full,
+        ),
+        (
+            "normal of length 2",
+            Box::new(move |b: &mut Vec<u8>| {
+                for k in 0..3 {
+                    let c = f32::from_bits(get_u32(b, at + 4 * k));
+                    put_u32(b, at + 4 * k, (2.0 * c).to_bits());
+                }
+            }),
+            Code::Rlod,
+            Depth::Full,
+        ),
+        (
+            "reserved byte",
+            Box::new(move |b: &mut Vec<u8>| b[at + 19] = 1),
+            Code::Rlod,
+            Depth::Full,
+        ),
+        (
+            "reserved tail",
+            Box::new(move |b: &mut Vec<u8>| b[at + 23] = 1),
+            Code::Rlod,
+            Depth::Full,
+        ),
+        (
+            "plane far from its cell",
+            Box::new(move |b: &mut Vec<u8>| put_u32(b, at + 12, 1.0e6f32.to_bits())),
+            Code::Rlod,
+            Depth::Deep,
+        ),
+        (
+            "NO_VOXELS without RLODS",
+            Box::new(|b: &mut Vec<u8>| {
+                put_u64(b, header::OFF_INCOMPAT, header::INCOMPAT_LOD_NO_VOXELS)
+            }),
+            Code::HeaderFeatureUnsupported,
+            Depth::Quick,
+        ),
+    ];
+    for (what, edit, code, depth) in cases {
+        expect_code(v, what, edit, code, depth, false)?;
+    }
     Ok(())
 }

@@ -386,19 +386,22 @@ fn every_treelet_height_and_block_size_works() -> Res<()> {
 fn output_is_byte_identical_across_runs_and_thread_counts() -> Res<()> {
     let mesh = demo_scene(6000);
     let tree = build_tree(&mesh, 8)?;
-    let o = opts(4096, Codec::Zstd(3), 3);
-    let run = |threads: usize| -> Res<Vec<u8>> {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(s)?;
-        pool.install(|| write_and_read(&mesh, &tree, &o))
-            .map(|(_, b)| b)
-    };
-    let one = run(1)?;
-    assert!(one == run(1)?, "two single-thread runs differ");
-    assert!(one == run(2)?, "one and two threads differ");
-    assert!(one == run(4)?, "one and four threads differ");
+    for lod in [LodKinds::VOXEL, LodKinds::BOTH, LodKinds::RLOD] {
+        let mut o = opts(4096, Codec::Zstd(3), 3);
+        o.write.lod = lod;
+        let run = |threads: usize| -> Res<Vec<u8>> {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(s)?;
+            pool.install(|| write_and_read(&mesh, &tree, &o))
+                .map(|(_, b)| b)
+        };
+        let one = run(1)?;
+        assert!(one == run(1)?, "{lod:?}: two single-thread runs differ");
+        assert!(one == run(2)?, "{lod:?}: one and two threads differ");
+        assert!(one == run(4)?, "{lod:?}: one and four threads differ");
+    }
     Ok(())
 }
 

@@ -46,8 +46,10 @@ struct Moments {
     oriented: [f64; 3],
     colour: [f64; 3],
     colour_weight: f64,
-    /// Clipped vertices, for the degenerate case.
+    /// Clipped vertices, for the degenerate case: their sum, their products (as `second`) and
+    /// their count.
     vertex_sum: [f64; 3],
+    vertex_second: [f64; 6],
     vertices: f64,
 }
 
@@ -88,8 +90,13 @@ impl Moments {
         }
         self.colour_weight += w;
         for v in poly {
-            for k in 0..3 {
-                self.vertex_sum[k] += v[k];
+            let mut i = 0;
+            for r in 0..3 {
+                self.vertex_sum[r] += v[r];
+                for q in r..3 {
+                    self.vertex_second[i] += v[r] * v[q];
+                    i += 1;
+                }
             }
             self.vertices += 1.0;
         }
@@ -129,33 +136,24 @@ pub fn fit(mesh: &Mesh, tris: &[u32], cell: Bounds) -> PlaneFit {
         [1.0; 3]
     };
     let (point, normal) = if m.area > 0.0 {
-        let mean = m.first.map(|f| f / m.area);
-        let s = m.second.map(|x| x / m.area);
-        let cov = [
-            [
-                s[0] - mean[0] * mean[0],
-                s[1] - mean[0] * mean[1],
-                s[2] - mean[0] * mean[2],
-            ],
-            [
-                s[1] - mean[0] * mean[1],
-                s[3] - mean[1] * mean[1],
-                s[4] - mean[1] * mean[2],
-            ],
-            [
-                s[2] - mean[0] * mean[2],
-                s[4] - mean[1] * mean[2],
-                s[5] - mean[2] * mean[2],
-            ],
-        ];
-        (mean, smallest_eigenvector(cov))
+        let (mean, normal, _) = principal(m.first, m.second, m.area);
+        (mean, normal)
+    } else if m.vertices > 0.0 {
+        // No area (degenerate triangles, or only edges on the cell's faces): the same fit over
+        // the clipped vertices, each of weight one. Collinear vertices leave a choice of normals
+        // (any one perpendicular to their line), which Jacobi makes deterministically; a single
+        // point falls back on the triangles' orientation.
+        let (mean, normal, spread) = principal(m.vertex_sum, m.vertex_second, m.vertices);
+        (
+            mean,
+            if spread > 0.0 {
+                normal
+            } else {
+                unit_or_z(m.oriented)
+            },
+        )
     } else {
-        let point = if m.vertices > 0.0 {
-            m.vertex_sum.map(|x| x / m.vertices)
-        } else {
-            [0.0; 3]
-        };
-        (point, unit_or_z(m.oriented))
+        ([0.0; 3], [0.0, 0.0, 1.0])
     };
     // Face the way the mesh's triangles do; a tie picks a positive major component.
     let along = dot(normal, m.oriented);
@@ -220,6 +218,21 @@ impl PlaneFit {
             ([0.0, 0.0, 1.0], 0.0)
         }
     }
+}
+
+/// The mean, the smallest principal axis and the total variance (the covariance's trace) of a
+/// distribution of total weight `weight`, first moments `first` and second moments `second`
+/// (xx, xy, xz, yy, yz, zz).
+fn principal(first: [f64; 3], second: [f64; 6], weight: f64) -> ([f64; 3], [f64; 3], f64) {
+    let m = first.map(|f| f / weight);
+    let s = second.map(|x| x / weight);
+    let cov = [
+        [s[0] - m[0] * m[0], s[1] - m[0] * m[1], s[2] - m[0] * m[2]],
+        [s[1] - m[0] * m[1], s[3] - m[1] * m[1], s[4] - m[1] * m[2]],
+        [s[2] - m[0] * m[2], s[4] - m[1] * m[2], s[5] - m[2] * m[2]],
+    ];
+    let trace = cov[0][0] + cov[1][1] + cov[2][2];
+    (m, smallest_eigenvector(cov), trace)
 }
 
 /// Sutherland–Hodgman clipping of a triangle against a box, reusing its buffers.
@@ -315,5 +328,234 @@ fn unit_or_z(a: [f64; 3]) -> [f64; 3] {
         [0.0, 0.0, 1.0]
     } else {
         n
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gen::rng::Rng;
+
+    fn cell(lo: f32, hi: f32) -> Bounds {
+        Bounds {
+            min: [lo; 3],
+            max: [hi; 3],
+        }
+    }
+
+    /// A grid of `n`×`n` squares over [-1, 1]² lifted by `z(x, y)`.
+    fn patch(n: usize, z: impl Fn(f64, f64) -> f64) -> Mesh {
+        let mut positions = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, y) = (
+                    -1.0 + 2.0 * i as f64 / n as f64,
+                    -1.0 + 2.0 * j as f64 / n as f64,
+                );
+                positions.push([x as f32, y as f32, z(x, y) as f32]);
+            }
+        }
+        let mut triangles = Vec::new();
+        let at = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+        for j in 0..n {
+            for i in 0..n {
+                triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+            }
+        }
+        Mesh::new(positions, triangles)
+    }
+
+    fn all(mesh: &Mesh) -> Vec<u32> {
+        (0..mesh.triangles.len() as u32).collect()
+    }
+
+    /// The reference: area-weighted covariance of the (unclipped) triangles by the
+    /// edge-midpoint rule (exact for quadratics, a different formula from the fit's), and the
+    /// smallest eigenvector from the closed-form eigenvalue of the characteristic cubic.
+    fn reference_normal(mesh: &Mesh) -> [f64; 3] {
+        let (mut area, mut first, mut second) = (0.0, [0.0; 3], [[0.0; 3]; 3]);
+        for t in 0..mesh.triangles.len() {
+            let Some(c) = mesh.corners(t) else { continue };
+            let p = c.map(|v| v.map(f64::from));
+            let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+            let a = 0.5 * dot(n, n).sqrt();
+            area += a;
+            for (u, v) in [(0, 1), (1, 2), (2, 0)] {
+                let m: [f64; 3] = std::array::from_fn(|k| (p[u][k] + p[v][k]) / 2.0);
+                for r in 0..3 {
+                    first[r] += a / 3.0 * m[r];
+                    for q in 0..3 {
+                        second[r][q] += a / 3.0 * m[r] * m[q];
+                    }
+                }
+            }
+        }
+        let mean = first.map(|f| f / area);
+        let c: [[f64; 3]; 3] = std::array::from_fn(|r| {
+            std::array::from_fn(|q| second[r][q] / area - mean[r] * mean[q])
+        });
+        // Smallest eigenvalue of a symmetric 3×3 matrix (trigonometric method).
+        let p1 = c[0][1].powi(2) + c[0][2].powi(2) + c[1][2].powi(2);
+        let q = (c[0][0] + c[1][1] + c[2][2]) / 3.0;
+        let p2 = (c[0][0] - q).powi(2) + (c[1][1] - q).powi(2) + (c[2][2] - q).powi(2) + 2.0 * p1;
+        let p = (p2 / 6.0).sqrt();
+        let b: [[f64; 3]; 3] = std::array::from_fn(|r| {
+            std::array::from_fn(|s| (c[r][s] - if r == s { q } else { 0.0 }) / p)
+        });
+        let det = b[0][0] * (b[1][1] * b[2][2] - b[1][2] * b[2][1])
+            - b[0][1] * (b[1][0] * b[2][2] - b[1][2] * b[2][0])
+            + b[0][2] * (b[1][0] * b[2][1] - b[1][1] * b[2][0]);
+        let phi = (det / 2.0).clamp(-1.0, 1.0).acos() / 3.0;
+        let smallest = q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos();
+        let m: [[f64; 3]; 3] = std::array::from_fn(|r| {
+            std::array::from_fn(|s| c[r][s] - if r == s { smallest } else { 0.0 })
+        });
+        // The null vector: the largest cross product of two rows.
+        let candidates = [cross(m[0], m[1]), cross(m[0], m[2]), cross(m[1], m[2])];
+        let best = candidates
+            .into_iter()
+            .fold([0.0; 3], |b, x| if dot(x, x) > dot(b, b) { x } else { b });
+        normalise(best)
+    }
+
+    #[test]
+    fn a_flat_patch_gives_its_exact_plane_and_no_deviation() {
+        // z = 0.3 x − 0.2 y + 0.1: normal ∝ (−0.3, 0.2, 1).
+        let mesh = patch(8, |x, y| 0.3 * x - 0.2 * y + 0.1);
+        let fit = fit(&mesh, &all(&mesh), cell(-2.0, 2.0));
+        let want = normalise([-0.3, 0.2, 1.0]);
+        assert!(dot(fit.normal, want) > 1.0 - 1e-12, "{:?}", fit.normal);
+        let on_plane = fit.point[2] - (0.3 * fit.point[0] - 0.2 * fit.point[1] + 0.1);
+        assert!(on_plane.abs() < 1e-6, "{on_plane}");
+        // The f32 vertices lie on the plane up to their rounding.
+        assert!(fit.deviation < 1e-6, "{}", fit.deviation);
+        assert!((fit.area - 4.0 * (1.0f64 + 0.09 + 0.04).sqrt()).abs() < 1e-5);
+        let r = fit.record(2.0 * 3f32.sqrt());
+        assert!(r.deviation_code <= 1 && r.expansion_code >= 1, "{r:?}");
+    }
+
+    #[test]
+    fn a_curved_patch_matches_the_double_precision_reference() {
+        let mesh = patch(12, |x, y| {
+            0.2 * x * x + 0.1 * x * y - 0.3 * y + 0.05 * y * y
+        });
+        let fit = fit(&mesh, &all(&mesh), cell(-4.0, 4.0));
+        let want = reference_normal(&mesh);
+        assert!(
+            dot(fit.normal, want).abs() > 1.0 - 1e-9,
+            "{:?} vs {want:?}",
+            fit.normal
+        );
+        assert!(fit.normal[2] > 0.0, "faces the way the triangles do");
+    }
+
+    #[test]
+    fn a_noisy_patch_has_a_bounded_deviation() {
+        let amp = 0.01;
+        let mut rng = Rng(7);
+        let mut noise = move || rng.range(-amp, amp);
+        let heights: Vec<f64> = (0..33 * 33).map(|_| noise()).collect();
+        let mesh = patch(32, |x, y| {
+            let (i, j) = (
+                ((x + 1.0) * 16.0).round() as usize,
+                ((y + 1.0) * 16.0).round() as usize,
+            );
+            heights[j * 33 + i]
+        });
+        let fit = fit(&mesh, &all(&mesh), cell(-2.0, 2.0));
+        assert!(fit.normal[2] > 1.0 - 1e-3, "{:?}", fit.normal);
+        // Every vertex is within `amp` of z = 0 and the plane is within about `amp` of z = 0
+        // over the patch, so no vertex is farther than about 2·amp from the plane.
+        assert!(fit.deviation <= 2.5 * amp, "{}", fit.deviation);
+        assert!(fit.deviation >= 0.5 * amp, "{}", fit.deviation);
+        let radius = 2.0 * 3f32.sqrt();
+        let r = fit.record(radius);
+        assert!(f64::from(r.deviation(radius)) >= fit.deviation.max(fit.stored_deviation));
+        assert!(r.error_radius(radius) > radius);
+    }
+
+    #[test]
+    fn only_the_part_inside_the_cell_counts() {
+        // One triangle, half of it beyond x = 0, which bounds the cell.
+        let mesh = Mesh::new(
+            vec![[-1.0, -1.0, 0.5], [1.0, -1.0, 0.5], [-1.0, 1.0, 0.5]],
+            vec![[0, 1, 2]],
+        );
+        let c = Bounds {
+            min: [-1.0, -1.0, -1.0],
+            max: [0.0, 1.0, 1.0],
+        };
+        let fit = fit(&mesh, &[0], c);
+        // Inside: the triangle minus the corner x > 0 (a right triangle of legs 1): 2 − 0.5.
+        assert!((fit.area - 1.5).abs() < 1e-12, "{}", fit.area);
+        assert!(fit.point[0] < 0.0 && (fit.point[2] - 0.5).abs() < 1e-12);
+        assert_eq!(fit.normal, [0.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn degenerate_nodes_get_a_defined_plane() {
+        // Collinear corners (zero area), a repeated vertex, nothing at all, nothing inside.
+        let mesh = Mesh::new(
+            vec![
+                [0.0, 0.0, 0.0],
+                [0.5, 0.5, 0.5],
+                [1.0, 1.0, 1.0],
+                [5.0, 5.0, 5.0],
+                [6.0, 5.0, 5.0],
+                [5.0, 6.0, 5.0],
+            ],
+            vec![[0, 1, 2], [0, 0, 2], [3, 4, 5]],
+        );
+        let c = cell(-1.0, 2.0);
+        for tris in [vec![0], vec![0, 1], vec![], vec![2]] {
+            let fit = fit(&mesh, &tris, c);
+            let all_finite = fit
+                .normal
+                .iter()
+                .chain(&fit.point)
+                .chain(&fit.colour)
+                .all(|x| x.is_finite())
+                && fit.deviation.is_finite();
+            assert!(all_finite, "{tris:?}: {fit:?}");
+            assert!(
+                (dot(fit.normal, fit.normal) - 1.0).abs() < 1e-12,
+                "{tris:?}"
+            );
+            let r = fit.record(2.6);
+            let bytes = {
+                let mut v = Vec::new();
+                r.encode_into(&mut v);
+                v
+            };
+            assert!(Rlod::decode(&bytes, 0).is_ok(), "{tris:?}: {r:?}");
+        }
+        // The collinear triangle's points all lie in the plane through their centroid.
+        let fit = fit(&mesh, &[0], c);
+        assert!(fit.deviation < 1e-12, "{fit:?}");
+    }
+
+    #[test]
+    fn jacobi_finds_the_smallest_axis_of_a_rotated_diagonal() {
+        // R diag(3, 2, 0.5) Rᵀ with R a rotation about (1, 1, 1).
+        let (s, c) = (0.7f64.sin(), 0.7f64.cos());
+        let k = normalise([1.0, 1.0, 1.0]);
+        let rot: [[f64; 3]; 3] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| {
+                let id = if i == j { 1.0 } else { 0.0 };
+                let kx = [[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]];
+                c * id + s * kx[i][j] + (1.0 - c) * k[i] * k[j]
+            })
+        });
+        let d = [3.0, 2.0, 0.5];
+        let m: [[f64; 3]; 3] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| (0..3).map(|q| rot[i][q] * d[q] * rot[j][q]).sum())
+        });
+        let v = smallest_eigenvector(m);
+        let want = [rot[0][2], rot[1][2], rot[2][2]];
+        assert!(dot(v, want).abs() > 1.0 - 1e-12, "{v:?} vs {want:?}");
+        // Repeated eigenvalues still give a unit vector.
+        let v = smallest_eigenvector([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+        assert!((dot(v, v) - 1.0).abs() < 1e-12);
     }
 }
