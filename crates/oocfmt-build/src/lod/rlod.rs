@@ -61,8 +61,8 @@ impl Moments {
             let (b, c) = (w[0], w[1]);
             let n = cross(sub(b, a), sub(c, a));
             let area = 0.5 * dot(n, n).sqrt();
-            for k in 0..3 {
-                self.oriented[k] += 0.5 * n[k];
+            for (o, n) in self.oriented.iter_mut().zip(n) {
+                *o += 0.5 * n;
             }
             if area == 0.0 {
                 continue;
@@ -70,8 +70,8 @@ impl Moments {
             poly_area += area;
             self.area += area;
             let s = [a[0] + b[0] + c[0], a[1] + b[1] + c[1], a[2] + b[2] + c[2]];
-            for k in 0..3 {
-                self.first[k] += area * s[k] / 3.0;
+            for (f, s) in self.first.iter_mut().zip(s) {
+                *f += area * s / 3.0;
             }
             // Exact second moment of a triangle: A/12 (Σ vᵢvᵢᵀ + s sᵀ).
             let mut i = 0;
@@ -85,8 +85,8 @@ impl Moments {
         }
         // Degenerate triangles still lend their colour, as in the voxels' fallback.
         let w = poly_area + 1e-30;
-        for k in 0..3 {
-            self.colour[k] += w * colour[k];
+        for (c, x) in self.colour.iter_mut().zip(colour) {
+            *c += w * x;
         }
         self.colour_weight += w;
         for v in poly {
@@ -300,15 +300,15 @@ pub fn smallest_eigenvector(a: [[f64; 3]; 3]) -> [f64; 3] {
             let c = 1.0 / (t * t + 1.0).sqrt();
             let s = t * c;
             // A ← Jᵀ A J, V ← V J.
-            for k in 0..3 {
-                let (akp, akq) = (a[k][p], a[k][q]);
-                a[k][p] = c * akp - s * akq;
-                a[k][q] = s * akp + c * akq;
+            for row in &mut a {
+                let (akp, akq) = (row[p], row[q]);
+                row[p] = c * akp - s * akq;
+                row[q] = s * akp + c * akq;
             }
+            let (rp, rq) = (a[p], a[q]);
             for k in 0..3 {
-                let (apk, aqk) = (a[p][k], a[q][k]);
-                a[p][k] = c * apk - s * aqk;
-                a[q][k] = s * apk + c * aqk;
+                a[p][k] = c * rp[k] - s * rq[k];
+                a[q][k] = s * rp[k] + c * rq[k];
             }
             for row in &mut v {
                 let (vp, vq) = (row[p], row[q]);
