@@ -88,6 +88,13 @@ fn bad_lod_flags_and_missing_kinds_exit_2() {
     assert!(err.contains("rlod") && err.contains("voxel"), "{err}");
     // A file without voxels renders its R-LODs by default.
     run_ok(&["render", "r.oocf", "-o", "r.png", "--size", "32x32"], d);
+    // `inspect --block` decodes the records with their bounds.
+    let text = stdout(&run_ok(&["inspect", "r.oocf", "--block", "0"], d));
+    assert!(
+        text.contains("rlod {") && text.contains("error_radius"),
+        "{text}"
+    );
+    assert!(!text.contains("voxel ["), "{text}");
 }
 
 #[test]

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use oocfmt::directory as dir;
 use oocfmt::header as hdr;
-use oocfmt::records::{Node, TreeletBlock, TriangleBlock};
+use oocfmt::records::{LodKinds, Node, TreeletBlock, TriangleBlock, RLOD_LEN};
 use oocfmt::trailer as trl;
 use oocfmt::{BlockKind, CodecId, ReadOptions, Reader};
 
@@ -138,7 +138,7 @@ impl Dump<'_> {
             .unwrap_or(&[])
             .to_vec();
         match e.kind {
-            BlockKind::Treelet => self.treelet_block(at, &raw),
+            BlockKind::Treelet => self.treelet_block(at, &raw, reader.lod_kinds()),
             BlockKind::Triangle => {
                 self.triangle_block(at, &raw, reader.metadata().schema.triangle_attributes())
             }
@@ -153,20 +153,38 @@ impl Dump<'_> {
         }
     }
 
-    fn treelet_block(&mut self, at: usize, raw: &[u8]) {
-        let Ok(b) = TreeletBlock::parse(raw) else {
+    fn treelet_block(&mut self, at: usize, raw: &[u8], kinds: LodKinds) {
+        let Ok(b) = TreeletBlock::parse_with(raw, kinds) else {
             self.field(at, raw.len(), "undecodable treelet block");
             return;
         };
         let t = b.treelet_count();
         self.field(at, 4, &format!("treelet count {t}"));
         self.field(at + 4, 4, &format!("node bytes {}", b.node_area().len()));
-        self.field(at + 8, 4, &format!("voxel bytes {}", b.voxel_area().len()));
+        let area = if kinds == LodKinds::VOXEL {
+            "voxel bytes"
+        } else {
+            "LOD area bytes (voxels and R-LODs)"
+        };
+        self.field(at + 8, 4, &format!("{area} {}", b.voxel_area().len()));
         self.field(at + 12, 4, "reserved");
         self.field(at + 16, 4 * t, "treelet start offsets");
         let nodes_at = at + 16 + 4 * t;
         let mut rows = Vec::new();
+        let mut entries = Vec::new();
         let _ = b.walk(|tl, pos, n| {
+            if let Node::Lod { voxel_offset, .. } = *n {
+                let off = voxel_offset as usize;
+                let voxel = b.voxel(voxel_offset).map_or(0, |v| v.byte_len());
+                if voxel > 0 {
+                    let label = format!("voxel of the LOD node at {pos}: {} sample(s)", voxel / 4);
+                    entries.push((off, voxel, label));
+                }
+                if kinds.rlod {
+                    let label = format!("R-LOD of the LOD node at {pos}: normal, offset, colour, deviation and expansion codes");
+                    entries.push((off + voxel, RLOD_LEN, label));
+                }
+            }
             let label = match *n {
                 Node::Basic { axis, split, left, right } => format!("treelet {tl} basic node: axis {axis}, split {split}, children +{left} +{right} (8-byte units)"),
                 Node::Lod { axis, split, radius, child_block, child_treelet, voxel_offset, proxy, .. } => format!(
@@ -180,9 +198,10 @@ impl Dump<'_> {
         for (pos, len, label) in rows {
             self.field(nodes_at + pos, len, &label);
         }
-        let vox_at = nodes_at + b.node_area().len();
-        for i in 0..b.voxel_area().len() / 4 {
-            self.field(vox_at + 4 * i, 4, "voxel sample (normal + colour)");
+        let lod_at = nodes_at + b.node_area().len();
+        entries.sort_by_key(|e| e.0);
+        for (off, len, label) in entries {
+            self.field(lod_at + off, len, &label);
         }
     }
 

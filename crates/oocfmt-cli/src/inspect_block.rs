@@ -44,6 +44,19 @@ pub struct NodeDump {
     pub node: NodeJson,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub voxel: Option<Vec<SampleDump>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rlod: Option<RlodDump>,
+}
+
+/// An R-LOD record with its bounds decoded for the node's radius (spec §6.4).
+#[derive(Serialize)]
+pub struct RlodDump {
+    pub normal: [f32; 3],
+    pub offset: f32,
+    pub colour: [u8; 3],
+    pub deviation: f32,
+    pub expansion: f32,
+    pub error_radius: f32,
 }
 
 #[derive(Serialize)]
@@ -166,6 +179,7 @@ fn treelets(block: &oocfmt::Block) -> Result<Vec<TreeletDump>, CliError> {
             });
         }
         let child = |u: u16| (u != 0).then(|| oocfmt::records::TreeletBlock::child_pos(pos, u));
+        let mut rlod = None;
         let (json, voxel) = match *node {
             Node::Basic {
                 axis,
@@ -192,10 +206,24 @@ fn treelets(block: &oocfmt::Block) -> Result<Vec<TreeletDump>, CliError> {
                 voxel_offset,
                 proxy,
             } => {
-                let samples = match view.voxel(voxel_offset)? {
-                    Voxel::Single(s) => vec![s.into()],
-                    Voxel::Six(s) => s.iter().map(|&x| x.into()).collect(),
+                let samples = match view.lod_kinds().voxel {
+                    true => Some(match view.voxel(voxel_offset)? {
+                        Voxel::Single(s) => vec![s.into()],
+                        Voxel::Six(s) => s.iter().map(|&x| x.into()).collect(),
+                    }),
+                    false => None,
                 };
+                if view.lod_kinds().rlod {
+                    let r = view.rlod(voxel_offset)?;
+                    rlod = Some(RlodDump {
+                        normal: r.normal,
+                        offset: r.offset,
+                        colour: r.colour,
+                        deviation: r.deviation(radius),
+                        expansion: r.expansion(radius),
+                        error_radius: r.error_radius(radius),
+                    });
+                }
                 let proxy = (proxy != oocfmt::records::NO_PROXY).then_some(proxy);
                 (
                     NodeJson::Lod {
@@ -209,7 +237,7 @@ fn treelets(block: &oocfmt::Block) -> Result<Vec<TreeletDump>, CliError> {
                         voxel_offset,
                         proxy,
                     },
-                    Some(samples),
+                    samples,
                 )
             }
             Node::Leaf {
@@ -230,6 +258,7 @@ fn treelets(block: &oocfmt::Block) -> Result<Vec<TreeletDump>, CliError> {
                 pos,
                 node: json,
                 voxel,
+                rlod,
             });
         }
         Ok(())
@@ -296,6 +325,13 @@ pub fn render(d: &BlockDump) -> String {
                             o,
                             "          voxel {}",
                             serde_json::to_string(v).unwrap_or_default()
+                        );
+                    }
+                    if let Some(r) = &n.rlod {
+                        let _ = writeln!(
+                            o,
+                            "          rlod {}",
+                            serde_json::to_string(r).unwrap_or_default()
                         );
                     }
                 }
