@@ -98,6 +98,32 @@ fn bad_lod_flags_and_missing_kinds_exit_2() {
 }
 
 #[test]
+fn rlods_are_refused_out_of_core_with_a_clear_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 16 MiB holds about 14 500 triangles in core: 20 000 go out of core.
+    gen(d, "mandelbulb", "20000", "mb.obj");
+    let args = [
+        "convert",
+        "mb.obj",
+        "-o",
+        "x.oocf",
+        "--lod",
+        "rlod",
+        "--mem-limit",
+        "16M",
+    ];
+    let o = oocfmt(&args, d);
+    assert_eq!(o.status.code(), Some(2), "{}", stdout(&o));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("in core") && err.contains("--mem-limit"),
+        "{err}"
+    );
+    assert!(!d.join("x.oocf").exists());
+}
+
+#[test]
 fn rlod_and_voxel_give_the_same_image_at_poe_0() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
