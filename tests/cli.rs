@@ -617,3 +617,43 @@ fn a_scene_without_attributes_stores_none() {
         "bytes per triangle {per_triangle:?}"
     );
 }
+
+#[test]
+fn a_reader_that_stops_early_does_not_make_inspect_fail() {
+    use std::io::Read;
+    use std::process::{Command, Stdio};
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    gen(tmp.path(), "mandelbulb", "60000", "m.obj");
+    run_ok(&["convert", "m.obj", "-o", "m.oocf", "--quiet"], tmp.path());
+    // The block with the longest dump: it must be more than a pipe's buffer for the test to
+    // mean anything.
+    let (block, len) = (0..40)
+        .map(|b| {
+            let o = oocfmt(
+                &["inspect", "m.oocf", "--block", &b.to_string()],
+                tmp.path(),
+            );
+            (b, o.stdout.len())
+        })
+        .max_by_key(|&(_, len)| len)
+        .unwrap_or((0, 0));
+    assert!(len > 1 << 18, "longest block dump {len} bytes");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_oocfmt"))
+        .args(["inspect", "m.oocf", "--block", &block.to_string()])
+        .current_dir(tmp.path())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("{e}"));
+    let mut first = [0u8; 64];
+    if let Some(mut out) = child.stdout.take() {
+        out.read_exact(&mut first).unwrap_or_else(|e| panic!("{e}"));
+    }
+    let o = child.wait_with_output().unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}

@@ -13,6 +13,7 @@ use oocfmt_build::layout::LayoutOptions;
 use oocfmt_build::report::{total_memory, ConvertReport};
 
 use crate::error::{to_json, CliError, CliResult};
+use crate::out::out;
 use crate::progress::Phases;
 
 #[derive(clap::Args)]
@@ -163,7 +164,7 @@ pub fn run(a: &Args) -> CliResult {
             source: e,
         })?;
     }
-    print!("{}", render(&report));
+    out!("{}", render(&report))?;
     Ok(0)
 }
 

@@ -18,6 +18,7 @@ use oocfmt_trace::output::write_png;
 use oocfmt_trace::{render, BlockingCache, Camera, FrameStats, RenderOptions, Scene};
 
 use crate::error::{CliError, CliResult};
+use crate::out::{out, outln};
 use crate::render::cli_error;
 use crate::{inspect, progress};
 
@@ -84,13 +85,13 @@ pub fn run(a: &Args) -> CliResult {
     )
     .map_err(|e| CliError::Build(e.to_string()))?;
     bar.finish_and_clear();
-    println!(
+    outln!(
         "generated  {} ({} triangles, {:.1} MB) in {:.2} s",
         obj.display(),
         gen.triangles,
         gen.bytes as f64 / 1e6,
         t.elapsed().as_secs_f64()
-    );
+    )?;
 
     let opts = ConvertOptions {
         layout: LayoutOptions {
@@ -106,20 +107,20 @@ pub fn run(a: &Args) -> CliResult {
     let mut phases = progress::Phases::new(false);
     let report = convert(std::slice::from_ref(&obj), &path, &opts, &mut phases)
         .map_err(|e| CliError::Build(e.to_string()))?;
-    println!(
+    outln!(
         "converted  {} ({} bytes) in {:.2} s: {:.0} triangles/s, peak memory {:.0} MiB",
         path.display(),
         report.file_bytes,
         report.seconds,
         report.triangles_per_second,
         report.peak_memory_bytes.unwrap_or(0) as f64 / 1048576.0
-    );
+    )?;
     let file_length = report.file_bytes;
 
     let reader = Reader::open(&path, ReadOptions::default())?;
-    println!();
-    print!("{}", inspect::render(&oocfmt::summary::summarize(&reader)?));
-    println!();
+    outln!()?;
+    out!("{}", inspect::render(&oocfmt::summary::summarize(&reader)?))?;
+    outln!()?;
 
     let src = FileSource::open(&path).map_err(|e| CliError::Io {
         path: path.display().to_string(),
@@ -137,24 +138,24 @@ pub fn run(a: &Args) -> CliResult {
     bar.finish_and_clear();
     let secs = t.elapsed().as_secs_f64();
     for issue in &report.issues {
-        println!("{issue}");
+        outln!("{issue}")?;
     }
-    println!(
+    outln!(
         "verify     --deep: {} ({} errors, {} warnings) in {secs:.3} s, {:.0} MB/s",
         if report.valid { "valid" } else { "INVALID" },
         report.errors,
         report.warnings,
         file_length as f64 / secs.max(1e-9) / 1e6
-    );
+    )?;
     if !report.valid {
         return Ok(1);
     }
-    println!();
+    outln!()?;
     render_both(&path, &a.out, a.width, a.poe)?;
-    println!(
+    outln!(
         "\nnext: oocfmt render {0} -o view.png --poe 1 --eye X,Y,Z; oocfmt inspect {0}",
         path.display()
-    );
+    )?;
     Ok(0)
 }
 
@@ -177,27 +178,27 @@ fn render_both(model: &Path, out: &Path, width: u32, poe: f32) -> Result<(), Cli
         let (image, stats) = render(&scene, &cache, &camera, &opts).map_err(cli_error)?;
         let png = out.join(format!("mandelbulb-poe{p}.png"));
         write_png(&png, image.width, image.height, &image.rgb).map_err(cli_error)?;
-        print_frame(&png, &stats);
+        print_frame(&png, &stats)?;
         images.push(image);
     }
     if let [reference, coarse] = &images[..] {
         let e = compare(reference, coarse, 8).map_err(|e| CliError::Build(e.to_string()))?;
         let pixels = reference.depth.len().max(1) as f64;
-        println!(
+        outln!(
             "error      --poe {poe} against --poe 0: RMSE {:.2} of 255, PSNR {:.1} dB, SSIM {:.4}, {:.2} % of pixels within 8 levels per channel, {:.3} % of hits and misses differ",
             e.rmse,
             e.psnr_db,
             e.ssim,
             100.0 * e.within_tolerance,
             100.0 * e.depth.hit_miss_differ as f64 / pixels
-        );
+        )?;
     }
     Ok(())
 }
 
-fn print_frame(png: &Path, s: &FrameStats) {
+fn print_frame(png: &Path, s: &FrameStats) -> Result<(), CliError> {
     let p = &s.primary;
-    println!(
+    outln!(
         "rendered   {} (--poe {}): {:.1} ms warm, {:.2} Mrays/s; rays end on {} triangles, {} voxels, {} proxies, {} misses; working set {:.1} MiB in {} blocks",
         png.display(),
         s.poe,
@@ -209,5 +210,5 @@ fn print_frame(png: &Path, s: &FrameStats) {
         p.miss,
         s.cache.bytes_resident as f64 / 1048576.0,
         s.cache.blocks_loaded
-    );
+    )
 }

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use oocfmt_build::export::{write_obj, write_ply, ExportError, ExportOptions};
 
 use crate::error::{to_json, CliError, CliResult};
+use crate::out::outln;
 use crate::progress;
 
 #[derive(clap::Args)]
@@ -55,9 +56,9 @@ pub fn run(a: &Args) -> CliResult {
         other => CliError::Build(other.to_string()),
     })?;
     if a.json {
-        println!("{}", to_json(&report)?);
+        outln!("{}", to_json(&report)?)?;
     } else {
-        println!(
+        outln!(
             "wrote {} ({} triangles, {} vertices, {} bytes){}",
             a.output.display(),
             report.triangles,
@@ -71,7 +72,7 @@ pub fn run(a: &Args) -> CliResult {
                     report.max_abs_error
                 )
             }
-        );
+        )?;
     }
     Ok(0)
 }

@@ -7,6 +7,7 @@ use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
 use oocfmt_build::gen::obj_writer::GenReport;
 
 use crate::error::{to_json, CliError, CliResult};
+use crate::out::outln;
 use crate::progress;
 
 #[derive(clap::Args)]
@@ -75,15 +76,15 @@ pub fn run(a: &Args) -> CliResult {
     bar.finish_and_clear();
     let report: GenReport = result.map_err(|e| CliError::Build(e.to_string()))?;
     if c.json {
-        println!("{}", to_json(&report)?);
+        outln!("{}", to_json(&report)?)?;
     } else {
-        println!(
+        outln!(
             "wrote {} ({} triangles, {} vertices, {} bytes)",
             c.output.display(),
             report.triangles,
             report.vertices,
             report.bytes
-        );
+        )?;
     }
     Ok(0)
 }

@@ -6,6 +6,7 @@ use oocfmt::summary::{summarize, Summary};
 use oocfmt::{ReadOptions, Reader};
 
 use crate::error::{to_json, CliError, CliResult};
+use crate::out::{out, outln};
 use crate::{hexdump, inspect_block};
 
 #[derive(clap::Args)]
@@ -25,24 +26,24 @@ pub struct Args {
 
 pub fn run(a: &Args) -> CliResult {
     if a.hexdump {
-        print!("{}", hexdump::annotate(&a.file)?);
+        out!("{}", hexdump::annotate(&a.file)?)?;
         return Ok(0);
     }
     let reader = Reader::open(&a.file, ReadOptions::default())?;
     if let Some(id) = a.block {
         let dump = inspect_block::dump(&reader, id)?;
         if a.json {
-            println!("{}", to_json(&dump)?);
+            outln!("{}", to_json(&dump)?)?;
         } else {
-            print!("{}", inspect_block::render(&dump));
+            out!("{}", inspect_block::render(&dump))?;
         }
         return Ok(0);
     }
     let s = summarize(&reader)?;
     if a.json {
-        println!("{}", to_json(&s)?);
+        outln!("{}", to_json(&s)?)?;
     } else {
-        print!("{}", render(&s));
+        out!("{}", render(&s))?;
     }
     Ok(0)
 }

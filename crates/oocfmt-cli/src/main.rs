@@ -12,6 +12,7 @@ mod gen;
 mod hexdump;
 mod inspect;
 mod inspect_block;
+mod out;
 mod progress;
 mod render;
 mod verify;

@@ -6,6 +6,7 @@ use oocfmt::verify::{verify, Depth, VerifyOptions};
 use oocfmt::{ByteSource, FileSource};
 
 use crate::error::{to_json, CliError, CliResult};
+use crate::out::outln;
 use crate::progress;
 
 #[derive(clap::Args)]
@@ -51,19 +52,19 @@ pub fn run(a: &Args) -> CliResult {
     let report = verify(&src, &name, &opts, &|done| bar.set_position(done))?;
     bar.finish_and_clear();
     if a.json {
-        println!("{}", to_json(&report)?);
+        outln!("{}", to_json(&report)?)?;
     } else {
         for issue in &report.issues {
-            println!("{issue}");
+            outln!("{issue}")?;
         }
         if report.issues_omitted > 0 {
-            println!(
+            outln!(
                 "... {} more issues not shown (raise --max-issues)",
                 report.issues_omitted
-            );
+            )?;
         }
         let verdict = if report.valid { "valid" } else { "INVALID" };
-        println!(
+        outln!(
             "{name}: {verdict} ({:?} check): {} errors, {} warnings, {} notes; {} blocks, {} stored bytes checked{}",
             report.depth,
             report.errors,
@@ -72,7 +73,7 @@ pub fn run(a: &Args) -> CliResult {
             report.blocks_checked,
             report.stored_bytes_checked,
             report.identity.as_deref().map(|i| format!("; identity {i}")).unwrap_or_default()
-        );
+        )?;
     }
     Ok(if report.valid { 0 } else { 1 })
 }
