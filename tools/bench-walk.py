@@ -107,42 +107,47 @@ def summarize(frames):
 COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f"]
 
 
-def svg_plot(path, title, panels):
-    """A plain SVG of panels side by side; each panel (title, y label, series) with series
-    (label, [y per frame]) drawn as lines over the frame number. Standard library only."""
-    pw, ph, left, top, bottom = 460, 300, 60, 40, 40
-    width = left + len(panels) * (pw + left) + 10
-    height = top + ph + bottom + 20 * len(panels[0][2]) + 20
+def svg_plot(path, title, rows):
+    """A plain SVG of rows of panels; each panel (title, y label, series) with series
+    (label, [y per frame]) drawn as lines over the frame number, the legend below. Standard
+    library only."""
+    pw, ph, left, top, gap = 420, 220, 70, 50, 60
+    cols = max(len(r) for r in rows)
+    legend = rows[0][0][2]
+    width = left + cols * (pw + left) + 10
+    height = top + len(rows) * (ph + gap) + 18 * len(legend) + 10
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
            f'font-family="sans-serif" font-size="12">',
            f'<rect width="{width}" height="{height}" fill="white"/>',
            f'<text x="{width / 2}" y="18" text-anchor="middle" font-size="14">{title}</text>']
-    for k, (ptitle, ylabel, series) in enumerate(panels):
+    cells = [(r, k, panel) for r, row in enumerate(rows) for k, panel in enumerate(row)]
+    for r, k, (ptitle, ylabel, series) in cells:
         x0 = left + k * (pw + left)
+        top_r = top + r * (ph + gap)
         ys = [y for _, v in series for y in v]
         frames = max(len(v) for _, v in series)
         lo, hi = min(ys + [0]), max(ys + [1e-9])
         if hi <= lo:
             hi = lo + 1
         sx = lambda i: x0 + pw * i / max(frames - 1, 1)
-        sy = lambda y: top + ph - ph * (y - lo) / (hi - lo)
-        out.append(f'<rect x="{x0}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="#888"/>')
-        out.append(f'<text x="{x0 + pw / 2}" y="{top - 8}" text-anchor="middle">{ptitle}</text>')
+        sy = lambda y: top_r + ph - ph * (y - lo) / (hi - lo)
+        out.append(f'<rect x="{x0}" y="{top_r}" width="{pw}" height="{ph}" fill="none" stroke="#888"/>')
+        out.append(f'<text x="{x0 + pw / 2}" y="{top_r - 8}" text-anchor="middle">{ptitle}</text>')
         for t in range(5):
             y = lo + (hi - lo) * t / 4
             out.append(f'<line x1="{x0 - 4}" x2="{x0 + pw}" y1="{sy(y):.1f}" y2="{sy(y):.1f}" stroke="#eee"/>')
             out.append(f'<text x="{x0 - 6}" y="{sy(y) + 4:.1f}" text-anchor="end">{y:.3g}</text>')
         for t in range(0, frames, max(1, frames // 6)):
-            out.append(f'<text x="{sx(t):.1f}" y="{top + ph + 16}" text-anchor="middle">{t}</text>')
-        out.append(f'<text x="{x0 + pw / 2}" y="{top + ph + 32}" text-anchor="middle">frame</text>')
-        out.append(f'<text x="{x0 - 45}" y="{top + ph / 2}" text-anchor="middle" '
-                   f'transform="rotate(-90 {x0 - 45} {top + ph / 2})">{ylabel}</text>')
+            out.append(f'<text x="{sx(t):.1f}" y="{top_r + ph + 16}" text-anchor="middle">{t}</text>')
+        out.append(f'<text x="{x0 + pw / 2}" y="{top_r + ph + 32}" text-anchor="middle">frame</text>')
+        out.append(f'<text x="{x0 - 45}" y="{top_r + ph / 2}" text-anchor="middle" '
+                   f'transform="rotate(-90 {x0 - 45} {top_r + ph / 2})">{ylabel}</text>')
         for j, (label, v) in enumerate(series):
             c = COLOURS[j % len(COLOURS)]
             pts = " ".join(f"{sx(i):.1f},{sy(y):.1f}" for i, y in enumerate(v))
             out.append(f'<polyline fill="none" stroke="{c}" stroke-width="1.5" points="{pts}"/>')
-    for j, (label, _) in enumerate(panels[0][2]):
-        y = top + ph + bottom + 14 + 18 * j
+    for j, (label, _) in enumerate(legend):
+        y = top + len(rows) * (ph + gap) + 18 * j
         c = COLOURS[j % len(COLOURS)]
         out.append(f'<line x1="{left}" x2="{left + 24}" y1="{y - 4}" y2="{y - 4}" stroke="{c}" stroke-width="3"/>')
         out.append(f'<text x="{left + 30}" y="{y}">{label}</text>')
@@ -180,13 +185,12 @@ def compare_strategies(a, model, cams, common, size_mb):
     print("frames: frames that missed blocks (of %d); pf used: prefetched blocks a later frame used / "
           "blocks prefetched; peak: most MiB held" % len(cams))
     if a.plot:
-        panels = []
-        for mb in budgets:
-            panels.append((f"--cache-mb {mb}: accuracy", "share of pixels equal to the reference",
-                           [(l, [f["accuracy"]["exact"] for f in runs[(mb, l)]]) for l, _ in STRATEGIES]))
-            panels.append((f"--cache-mb {mb}: blocks loaded", "blocks loaded after the frame",
-                           [(l, [f["blocks_loaded"] for f in runs[(mb, l)]]) for l, _ in STRATEGIES]))
-        svg_plot(a.plot, f"Cold walkthrough of {os.path.basename(model)}, {a.size}, --poe {a.poe}", panels)
+        rows = [[(f"--cache-mb {mb}: accuracy", "pixels equal to the reference",
+                  [(l, [f["accuracy"]["exact"] for f in runs[(mb, l)]]) for l, _ in STRATEGIES]),
+                 (f"--cache-mb {mb}: blocks loaded per frame", "blocks",
+                  [(l, [f["blocks_loaded"] for f in runs[(mb, l)]]) for l, _ in STRATEGIES])]
+                for mb in budgets]
+        svg_plot(a.plot, f"Cold walkthrough of {os.path.basename(model)}, {a.size}, --poe {a.poe}", rows)
         print(f"wrote {a.plot}")
 
 
