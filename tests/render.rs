@@ -87,6 +87,12 @@ fn render_usage_errors_exit_2() {
         &["render", "m.oocf", "-o", "x.png", "--cache", "paged"][..],
         &["render", "m.oocf", "-o", "x.png", "--fetchers", "0"][..],
         &["render", "m.oocf", "-o", "x.png", "--eye", "1,2"][..],
+        &["render", "m.oocf", "-o", "x.png", "--eviction", "fifo"][..],
+        &["render", "m.oocf", "-o", "x.png", "--fetch-order", "size"][..],
+        &["render", "m.oocf", "-o", "x.png", "--prefetch", "yes"][..],
+        &["render", "m.oocf", "-o", "x.png", "--prefetch-mb", "0"][..],
+        &["render", "m.oocf", "-o", "x.png", "--prefetch-frames", "0"][..],
+        &["render", "m.oocf", "-o", "x.png", "--accuracy"][..],
     ] {
         let o = oocfmt(args, d);
         assert_eq!(o.status.code(), Some(2), "{args:?}");
@@ -190,4 +196,101 @@ fn render_path_writes_numbered_pngs_and_per_frame_figures() {
         d,
     );
     assert_eq!(o.status.code(), Some(2));
+}
+
+/// `render --path` with `extra` flags on a 3-frame path; the per-frame figures.
+fn walk_figures(d: &Path, name: &str, extra: &[&str]) -> Vec<serde_json::Value> {
+    let png = format!("{name}.png");
+    let json = format!("{name}.json");
+    let mut args = vec![
+        "render",
+        "mb.oocf",
+        "-o",
+        &png,
+        "--size",
+        "32x24",
+        "--path",
+        "path.json",
+        "--stats-json",
+        &json,
+    ];
+    args.extend_from_slice(extra);
+    let o = oocfmt(&args, d);
+    ok_(&o);
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join(&json)).unwrap()).unwrap();
+    stats.as_array().unwrap().clone()
+}
+
+#[test]
+fn render_path_accuracy_is_full_for_blocking_at_poe_0_and_partial_for_a_cold_async_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    converted_mandelbulb(d);
+    std::fs::write(
+        d.join("path.json"),
+        r#"{"keyframes": [{"eye": [0, 0.5, 4], "look_at": [0, 0, 0]},
+                          {"eye": [3, 0.5, 1.5], "look_at": [0, 0, 0]}], "frames": 3}"#,
+    )
+    .unwrap();
+    let accuracy = |f: &serde_json::Value, k: &str| f["accuracy"][k].as_f64().unwrap();
+    let blocking = walk_figures(
+        d,
+        "blocking",
+        &["--cache", "blocking", "--poe", "0", "--accuracy"],
+    );
+    for f in &blocking {
+        assert_eq!(accuracy(f, "exact"), 1.0, "{f}");
+        assert_eq!(accuracy(f, "within_tolerance"), 1.0, "{f}");
+        assert_eq!(f["accuracy"]["tolerance"].as_u64(), Some(8));
+    }
+    let cold = walk_figures(
+        d,
+        "cold",
+        &[
+            "--poe",
+            "0",
+            "--accuracy",
+            "--accuracy-tolerance",
+            "3",
+            "--eviction",
+            "second-chance",
+            "--fetch-order",
+            "wald",
+            "--prefetch",
+            "on",
+        ],
+    );
+    let first = &cold[0];
+    assert!(accuracy(first, "exact") < 1.0, "{first}");
+    assert!(accuracy(first, "within_tolerance") >= accuracy(first, "exact"));
+    assert_eq!(first["accuracy"]["tolerance"].as_u64(), Some(3));
+    let cache = &cold[2]["stats"]["cache"];
+    assert_eq!(cache["eviction"], "second-chance");
+    assert_eq!(cache["fetch_order"], "wald");
+    for k in ["blocks_missed", "blocks_prefetched", "blocks_prefetch_used"] {
+        assert!(first[k].as_u64().is_some(), "{k} in {first}");
+    }
+    // Without --accuracy there is no such figure.
+    let plain = walk_figures(d, "plain", &[]);
+    assert!(plain[0].get("accuracy").is_none());
+
+    // Prefetching predicts a walkthrough's cameras with the async cache only.
+    for extra in [
+        &[
+            "--prefetch",
+            "on",
+            "--cache",
+            "blocking",
+            "--path",
+            "path.json",
+        ][..],
+        &["--prefetch", "on"][..],
+    ] {
+        let mut args = vec!["render", "mb.oocf", "-o", "p.png", "--size", "8x6"];
+        args.extend_from_slice(extra);
+        let o = oocfmt(&args, d);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}");
+        assert!(String::from_utf8_lossy(&o.stderr).contains("--prefetch"));
+    }
 }

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Walkthrough figures of `oocfmt render --path`: cold start against warm frames, and a cache
-budget a tenth of the container.
+budget a tenth of the container; or, with --strategies, the cache strategies side by side.
 
 Generates and converts a Mandelbulb with the release binary (or takes --model), writes a path
 that approaches the model while orbiting it, and renders it
@@ -14,10 +14,19 @@ Prints per frame the cold and warm milliseconds (the frame's rays plus the cache
 it), their ratio, the share of pixels still coarse (ending on a voxel or proxy where the warm
 frame shows triangles), blocks loaded, the working set; then the summary: the largest cold/warm
 ratio, the frame from which the cold images equal the warm ones, and the small budget's peak.
+With --strategies: the same cold walkthrough, for each --cache-mb of --strategy-mb, with each
+cache strategy (fetch order Afra or Wald, eviction LRU or second chance, look-ahead prefetching
+off or on) and --accuracy: per strategy the medians over the frames of the frame time (the
+frame's rays, the cache's step and the look-ahead), the largest frame time, the spikes (frames
+over 1.5x the run's median), the misses (distinct blocks a frame wanted and did not find), the
+blocks loaded per frame (median and the largest burst), the frames that missed blocks, the share
+of coarse pixels and the accuracy (share of pixels equal to the full-detail reference: blocking
+cache, PoE 0); and an SVG plot of the per-frame accuracy and blocks loaded (--plot).
 Standard library only.
 
     cargo build --release -p oocfmt-cli
     python3 tools/bench-walk.py --tris 1e7
+    python3 tools/bench-walk.py --model target/bench-render/mb10m.oocf --strategies
 """
 
 import argparse
@@ -55,6 +64,136 @@ def render_path(model, cams, work, name, extra):
         return json.load(f)
 
 
+# (label, flags): the strategies --strategies compares, the first the default.
+STRATEGIES = [
+    ("afra+lru", ["--fetch-order", "afra", "--eviction", "lru"]),
+    ("afra+2nd-chance", ["--fetch-order", "afra", "--eviction", "second-chance"]),
+    ("wald+lru", ["--fetch-order", "wald", "--eviction", "lru"]),
+    ("wald+2nd-chance", ["--fetch-order", "wald", "--eviction", "second-chance"]),
+    ("afra+lru+prefetch", ["--fetch-order", "afra", "--eviction", "lru", "--prefetch", "on"]),
+    ("wald+2nd-chance+prefetch", ["--fetch-order", "wald", "--eviction", "second-chance", "--prefetch", "on"]),
+]
+
+
+def frame_ms(f):
+    return f["ms"] + f["step_ms"] + f.get("prefetch_ms", 0.0)
+
+
+def summarize(frames):
+    """The per-strategy figures of one run's per-frame figures."""
+    times = [frame_ms(f) for f in frames]
+    med = statistics.median(times)
+    rays = frames[0]["stats"]["primary_rays"]
+    loaded = [f["blocks_loaded"] for f in frames]
+    return {
+        "median_ms": med,
+        "max_ms": max(times),
+        "spikes": sum(t > 1.5 * med for t in times),
+        "median_missed": statistics.median(f["blocks_missed"] for f in frames),
+        "total_missed": sum(f["blocks_missed"] for f in frames),
+        "median_loaded": statistics.median(loaded),
+        "max_loaded": max(loaded),
+        "frames_missing": sum(f["blocks_missed"] > 0 for f in frames),
+        "coarse_pct": 100 * statistics.median(f["coarse_pixels"] for f in frames) / rays,
+        "accuracy_pct": 100 * statistics.median(f["accuracy"]["exact"] for f in frames),
+        "min_accuracy_pct": 100 * min(f["accuracy"]["exact"] for f in frames),
+        "tolerance_pct": 100 * statistics.median(f["accuracy"]["within_tolerance"] for f in frames),
+        "prefetched": sum(f.get("blocks_prefetched", 0) for f in frames),
+        "prefetch_used": sum(f.get("blocks_prefetch_used", 0) for f in frames),
+        "peak_mb": max(f["stats"]["cache"]["peak_bytes_resident"] for f in frames) / 2**20,
+    }
+
+
+COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f"]
+
+
+def svg_plot(path, title, rows):
+    """A plain SVG of rows of panels; each panel (title, y label, series) with series
+    (label, [y per frame]) drawn as lines over the frame number, the legend below. Standard
+    library only."""
+    pw, ph, left, top, gap = 420, 220, 70, 50, 60
+    cols = max(len(r) for r in rows)
+    legend = rows[0][0][2]
+    width = left + cols * (pw + left) + 10
+    height = top + len(rows) * (ph + gap) + 18 * len(legend) + 10
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+           f'font-family="sans-serif" font-size="12">',
+           f'<rect width="{width}" height="{height}" fill="white"/>',
+           f'<text x="{width / 2}" y="18" text-anchor="middle" font-size="14">{title}</text>']
+    cells = [(r, k, panel) for r, row in enumerate(rows) for k, panel in enumerate(row)]
+    for r, k, (ptitle, ylabel, series) in cells:
+        x0 = left + k * (pw + left)
+        top_r = top + r * (ph + gap)
+        ys = [y for _, v in series for y in v]
+        frames = max(len(v) for _, v in series)
+        lo, hi = min(ys + [0]), max(ys + [1e-9])
+        if hi <= lo:
+            hi = lo + 1
+        sx = lambda i: x0 + pw * i / max(frames - 1, 1)
+        sy = lambda y: top_r + ph - ph * (y - lo) / (hi - lo)
+        out.append(f'<rect x="{x0}" y="{top_r}" width="{pw}" height="{ph}" fill="none" stroke="#888"/>')
+        out.append(f'<text x="{x0 + pw / 2}" y="{top_r - 8}" text-anchor="middle">{ptitle}</text>')
+        for t in range(5):
+            y = lo + (hi - lo) * t / 4
+            out.append(f'<line x1="{x0 - 4}" x2="{x0 + pw}" y1="{sy(y):.1f}" y2="{sy(y):.1f}" stroke="#eee"/>')
+            out.append(f'<text x="{x0 - 6}" y="{sy(y) + 4:.1f}" text-anchor="end">{y:.3g}</text>')
+        for t in range(0, frames, max(1, frames // 6)):
+            out.append(f'<text x="{sx(t):.1f}" y="{top_r + ph + 16}" text-anchor="middle">{t}</text>')
+        out.append(f'<text x="{x0 + pw / 2}" y="{top_r + ph + 32}" text-anchor="middle">frame</text>')
+        out.append(f'<text x="{x0 - 45}" y="{top_r + ph / 2}" text-anchor="middle" '
+                   f'transform="rotate(-90 {x0 - 45} {top_r + ph / 2})">{ylabel}</text>')
+        for j, (label, v) in enumerate(series):
+            c = COLOURS[j % len(COLOURS)]
+            pts = " ".join(f"{sx(i):.1f},{sy(y):.1f}" for i, y in enumerate(v))
+            out.append(f'<polyline fill="none" stroke="{c}" stroke-width="1.5" points="{pts}"/>')
+    for j, (label, _) in enumerate(legend):
+        y = top + len(rows) * (ph + gap) + 18 * j
+        c = COLOURS[j % len(COLOURS)]
+        out.append(f'<line x1="{left}" x2="{left + 24}" y1="{y - 4}" y2="{y - 4}" stroke="{c}" stroke-width="3"/>')
+        out.append(f'<text x="{left + 30}" y="{y}">{label}</text>')
+    out.append("</svg>")
+    with open(path, "w") as f:
+        f.write("\n".join(out) + "\n")
+
+
+def compare_strategies(a, model, cams, common, size_mb):
+    budgets = [int(m) for m in a.strategy_mb.split(",")]
+    runs = {}
+    with tempfile.TemporaryDirectory(dir=a.dir) as work:
+        for mb in budgets:
+            for label, flags in STRATEGIES:
+                extra = common + ["--cache-mb", str(mb), "--accuracy",
+                                  "--prefetch-mb", str(a.prefetch_mb)] + flags
+                name = f"s{mb}-{label.replace('+', '-')}"
+                runs[(mb, label)] = render_path(model, cams, work, name, extra)
+    print(f"model {model}: {size_mb:.1f} MiB; {a.frames} frames + {a.hold} still, {a.size}, --poe {a.poe}, "
+          f"{a.fetchers} fetchers, --prefetch-mb {a.prefetch_mb}; cold cache each run")
+    print("ms: frame's rays + cache step + look-ahead; spikes: frames over 1.5x the run's median; missed: "
+          "distinct blocks a frame wanted and did not find; loaded: blocks published after a frame; "
+          "accuracy: pixels equal to the full-detail reference (blocking, PoE 0)")
+    head = (f"{'MiB':>4} {'strategy':<25} {'med ms':>7} {'max ms':>7} {'spikes':>6} {'missed':>6} "
+            f"{'loaded':>6} {'burst':>5} {'frames':>6} {'coarse%':>7} {'acc%':>6} {'min%':>6} "
+            f"{'tol%':>6} {'pf used':>9} {'peak':>6}")
+    print(head)
+    for (mb, label), frames in runs.items():
+        s = summarize(frames)
+        pf = f"{s['prefetch_used']}/{s['prefetched']}" if s["prefetched"] else "-"
+        print(f"{mb:>4} {label:<25} {s['median_ms']:7.1f} {s['max_ms']:7.1f} {s['spikes']:6} "
+              f"{s['median_missed']:6.0f} {s['median_loaded']:6.0f} {s['max_loaded']:5} "
+              f"{s['frames_missing']:6} {s['coarse_pct']:7.2f} {s['accuracy_pct']:6.2f} "
+              f"{s['min_accuracy_pct']:6.2f} {s['tolerance_pct']:6.2f} {pf:>9} {s['peak_mb']:6.1f}")
+    print("frames: frames that missed blocks (of %d); pf used: prefetched blocks a later frame used / "
+          "blocks prefetched; peak: most MiB held" % len(cams))
+    if a.plot:
+        rows = [[(f"--cache-mb {mb}: accuracy", "pixels equal to the reference",
+                  [(l, [f["accuracy"]["exact"] for f in runs[(mb, l)]]) for l, _ in STRATEGIES]),
+                 (f"--cache-mb {mb}: blocks loaded per frame", "blocks",
+                  [(l, [f["blocks_loaded"] for f in runs[(mb, l)]]) for l, _ in STRATEGIES])]
+                for mb in budgets]
+        svg_plot(a.plot, f"Cold walkthrough of {os.path.basename(model)}, {a.size}, --poe {a.poe}", rows)
+        print(f"wrote {a.plot}")
+
+
 def same_png(a, b):
     with open(a, "rb") as fa, open(b, "rb") as fb:
         return fa.read() == fb.read()
@@ -71,6 +210,11 @@ def main():
     p.add_argument("--cache-mb", type=int, default=2048)
     p.add_argument("--fetchers", type=int, default=2)
     p.add_argument("--dir", default=os.path.join(ROOT, "target", "bench-walk"))
+    p.add_argument("--strategies", action="store_true",
+                   help="compare the cache strategies on one cold walkthrough instead")
+    p.add_argument("--strategy-mb", default="26,64", help="--strategies: the cache budgets, MiB")
+    p.add_argument("--prefetch-mb", default="4", help="--strategies: the per-frame prefetch budget")
+    p.add_argument("--plot", help="--strategies: write the per-frame plot to this SVG file")
     a = p.parse_args()
     require_binary()
     os.makedirs(a.dir, exist_ok=True)
@@ -93,6 +237,9 @@ def main():
     cams += [cams[-1]] * a.hold
     frames = len(cams)
     common = ["--size", a.size, "--poe", a.poe, "--fetchers", str(a.fetchers)]
+    if a.strategies:
+        compare_strategies(a, model, cams, common, size_mb)
+        return
     with tempfile.TemporaryDirectory(dir=a.dir) as work:
         cold = render_path(model, cams, work, "cold", common + ["--cache-mb", str(a.cache_mb)])
         both = render_path(model, cams + cams, work, "warm", common + ["--cache-mb", str(a.cache_mb)])

@@ -8,6 +8,10 @@ use std::sync::Arc;
 use serde::Serialize;
 
 use oocfmt_trace::blocks::LodKind;
+use oocfmt_trace::cache::asynchronous::AsyncOptions;
+use oocfmt_trace::cache::prefetch::{LookAhead, DEFAULT_FRAMES_AHEAD, DEFAULT_PROBE_ROWS};
+use oocfmt_trace::cache::{Eviction, FetchOrder};
+use oocfmt_trace::compare::median_sorted;
 use oocfmt_trace::output::{write_pfm, write_png};
 use oocfmt_trace::render::{Endings, FrameStats, Image};
 use oocfmt_trace::{
@@ -15,6 +19,7 @@ use oocfmt_trace::{
     RenderOptions, Scene, TraceError,
 };
 
+use crate::accuracy::{self, Accuracy};
 use crate::error::{to_json, CliError, CliResult};
 
 #[derive(clap::Args)]
@@ -48,6 +53,39 @@ pub struct Args {
     /// free room only (less than half the budget in use); 0 reads only what rays ask for
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_READ_AHEAD, value_parser = clap::value_parser!(u8).range(0..=16))]
     pub read_ahead: u8,
+    /// Async cache: the order fetchers serve requests in: `afra` (by the rays that wanted a
+    /// block, each weighted by the region's angular size) or `wald` (by region size over
+    /// distance alone, in 8 discrete queues spread linearly between the last frame's extremes,
+    /// after Wald et al. 2004)
+    #[arg(long, default_value = "afra", value_parser = FetchOrder::NAMES)]
+    pub fetch_order: String,
+    /// Async cache: what makes room: `lru` (the least recently used blocks the frame did not
+    /// touch, when fetches need room) or `second-chance` (a clock sweep that spares a block
+    /// used since the hand last passed, running once more than 80 % of --cache-mb is held,
+    /// after Wald et al. 2004); neither evicts a block the current frame touched
+    #[arg(long, default_value = "lru", value_parser = Eviction::NAMES)]
+    pub eviction: String,
+    /// Walkthroughs with the async cache: look-ahead prefetching (after iWalk): after each
+    /// frame, predict the next cameras from the linear and angular speed of the last two,
+    /// trace a coarse grid of probe rays from them against the resident blocks, and fetch the
+    /// blocks they miss after every demand fetch, within --prefetch-mb per frame
+    #[arg(long, default_value = "off", value_parser = ["on", "off"])]
+    pub prefetch: String,
+    /// Decoded MiB that look-ahead prefetching may load per frame
+    #[arg(long, default_value_t = 4.0, value_parser = parse_mb)]
+    pub prefetch_mb: f64,
+    /// Frames ahead that look-ahead prefetching predicts and probes (each one)
+    #[arg(long, default_value_t = DEFAULT_FRAMES_AHEAD, value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub prefetch_frames: u32,
+    /// Walkthroughs: report per frame the share of pixels equal to the full-detail reference
+    /// (the same camera rendered with --cache blocking --poe 0 after the walkthrough, so its
+    /// time does not help the walkthrough's fetchers), exactly and within
+    /// --accuracy-tolerance
+    #[arg(long, requires = "path")]
+    pub accuracy: bool,
+    /// Levels of 255 each channel may differ by for a pixel to count as within tolerance
+    #[arg(long, default_value_t = 8)]
+    pub accuracy_tolerance: u8,
     /// A walkthrough: a JSON list of cameras [{"eye": [x,y,z], "look_at": [x,y,z], "up"?: ..,
     /// "fov_y"?: ..}, ...] or {"keyframes": [cameras], "frames": N}; renders numbered PNGs
     /// (out.png -> out-0000.png, ...) with one cache kept across the frames, and figures per
@@ -93,6 +131,16 @@ pub struct Args {
     /// diagonal)
     #[arg(long, value_parser = parse_distance, allow_hyphen_values = true, requires = "ao")]
     pub ao_distance: Option<f32>,
+}
+
+/// MiB, finite, > 0 and at most 2^30.
+fn parse_mb(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(m) if m.is_finite() && m > 0.0 && m <= f64::from(1u32 << 30) => Ok(m),
+        _ => Err(format!(
+            "`{s}`: expected MiB, a number > 0 and at most 2^30"
+        )),
+    }
 }
 
 /// A finite distance > 0 that fits an f32.
@@ -178,15 +226,24 @@ impl Cache {
         } else {
             Some(Arc::new(open_scene(&a.model, a.lod)?))
         };
-        let budget = usize::try_from(a.cache_mb << 20).unwrap_or(usize::MAX);
-        let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
-        Cache::of_kind(
+        let opts = AsyncOptions {
+            fetchers: usize::try_from(a.fetchers).unwrap_or(1),
+            read_ahead: a.read_ahead,
+            // The value parsers allow only the names.
+            fetch_order: FetchOrder::parse(&a.fetch_order).unwrap_or_default(),
+            eviction: Eviction::parse(&a.eviction).unwrap_or_default(),
+            prefetch_bytes: if a.prefetch == "on" {
+                (a.prefetch_mb * 1048576.0) as u64
+            } else {
+                0
+            },
+        };
+        Cache::with_options(
             &a.model,
             scene,
             &a.cache,
-            budget,
-            fetchers,
-            a.read_ahead,
+            budget_bytes(a.cache_mb),
+            &opts,
             a.lod,
         )
     }
@@ -202,6 +259,23 @@ impl Cache {
         read_ahead: u8,
         lod: Option<LodKind>,
     ) -> Result<(Arc<Scene>, Cache), CliError> {
+        let opts = AsyncOptions {
+            fetchers,
+            read_ahead,
+            ..AsyncOptions::default()
+        };
+        Cache::with_options(model, scene, kind, budget, &opts, lod)
+    }
+
+    /// [`Cache::of_kind`] with every option of the async cache.
+    pub(crate) fn with_options(
+        model: &Path,
+        scene: Option<Arc<Scene>>,
+        kind: &str,
+        budget: usize,
+        opts: &AsyncOptions,
+        lod: Option<LodKind>,
+    ) -> Result<(Arc<Scene>, Cache), CliError> {
         if kind == "mmap" {
             let c = MmapCache::open_as(model, budget, lod).map_err(cli_error)?;
             return Ok((Arc::clone(c.scene()), Cache::Mmap(c)));
@@ -213,12 +287,7 @@ impl Cache {
         let cache = if kind == "blocking" {
             Cache::Blocking(BlockingCache::new(Arc::clone(&scene), budget))
         } else {
-            Cache::Async(AsyncCache::with_read_ahead(
-                Arc::clone(&scene),
-                budget,
-                fetchers,
-                read_ahead,
-            ))
+            Cache::Async(AsyncCache::with_options(Arc::clone(&scene), budget, opts))
         };
         Ok((scene, cache))
     }
@@ -254,6 +323,18 @@ struct FrameFigures {
     working_set_mb: f64,
     /// Of this frame's block lookups, the share that found the block resident.
     hit_rate: f64,
+    /// Distinct blocks the frame wanted and did not find resident (its misses).
+    blocks_missed: u64,
+    /// Look-ahead prefetching after the step: predicting and probing the next cameras and
+    /// queueing what they want (0 without --prefetch).
+    prefetch_ms: f64,
+    /// Of `blocks_loaded`, the ones prefetched; and prefetched blocks (loaded by any step)
+    /// that this frame used for the first time.
+    blocks_prefetched: u64,
+    blocks_prefetch_used: u64,
+    /// With --accuracy: the share of pixels equal to the full-detail reference.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    accuracy: Option<Accuracy>,
     missing_blocks: usize,
     stats: FrameStats,
 }
@@ -286,6 +367,13 @@ impl FrameFigures {
             } else {
                 1.0
             },
+            blocks_missed: c.blocks_wanted_last_frame,
+            prefetch_ms: 0.0,
+            blocks_prefetched: c.blocks_prefetched.saturating_sub(before.blocks_prefetched),
+            blocks_prefetch_used: c
+                .blocks_prefetch_used
+                .saturating_sub(before.blocks_prefetch_used),
+            accuracy: None,
             missing_blocks: c.missing_blocks.len(),
             stats,
         }
@@ -357,6 +445,11 @@ pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), Cli
         path: path.display().to_string(),
         source,
     })
+}
+
+/// `--cache-mb` in bytes.
+fn budget_bytes(mb: u64) -> usize {
+    usize::try_from(mb << 20).unwrap_or(usize::MAX)
 }
 
 /// Sets the render threads (`--threads`; None: all cores).
@@ -439,6 +532,13 @@ pub fn run(a: &Args) -> CliResult {
         Some(p) => Some(walk::read_path(p, w, h).map_err(cli_error)?),
         None => None,
     };
+    if a.prefetch == "on" && (a.cache != "async" || a.path.is_none()) {
+        return Err(CliError::Usage(
+            "--prefetch on predicts the cameras of a walkthrough: it needs --path and --cache \
+             async"
+                .into(),
+        ));
+    }
     let (scene, cache) = Cache::open(a)?;
     let origin = scene.metadata().scene.origin;
     let stored = |p: [f64; 3]| [0, 1, 2].map(|k| p[k] - origin[k]);
@@ -453,7 +553,7 @@ pub fn run(a: &Args) -> CliResult {
     };
     if let Some(cameras) = path_cameras {
         let cameras = stored_cameras(&scene, cameras);
-        return walkthrough(a, &scene, cache.get(), &cameras, &opts);
+        return walkthrough(a, &scene, &cache, &cameras, &opts);
     }
     let camera = still_camera(&scene, &a.view);
     let c = cache.get();
@@ -518,20 +618,37 @@ pub fn run(a: &Args) -> CliResult {
 }
 
 /// Renders `cameras` in order with one cache, writing numbered PNGs and a line of figures per
-/// frame.
+/// frame; with --prefetch, looks ahead after each frame; with --accuracy, compares every frame
+/// with its full-detail reference at the end.
 fn walkthrough(
     a: &Args,
-    scene: &Scene,
-    cache: &dyn BlockCache,
+    scene: &Arc<Scene>,
+    cache: &Cache,
     cameras: &[Camera],
     opts: &RenderOptions,
 ) -> CliResult {
+    let c = cache.get();
+    let mut look_ahead = match cache {
+        Cache::Async(ac) if a.prefetch == "on" => {
+            Some((ac, LookAhead::new(a.prefetch_frames, DEFAULT_PROBE_ROWS)))
+        }
+        _ => None,
+    };
     let mut out = std::io::stdout().lock();
     let mut all = Vec::with_capacity(cameras.len());
-    let mut before = cache.stats();
+    let mut files = Vec::with_capacity(cameras.len());
+    let mut before = c.stats();
     let mut reported_missing = 0;
     for (i, camera) in cameras.iter().enumerate() {
-        let (image, stats, step_ms) = frame_and_step(scene, cache, camera, opts)?;
+        let (image, stats, step_ms) = frame_and_step(scene, c, camera, opts)?;
+        let prefetch_ms = match &mut look_ahead {
+            Some((ac, la)) => {
+                let start = std::time::Instant::now();
+                la.after_frame(scene, ac, camera, opts.poe);
+                start.elapsed().as_secs_f64() * 1e3
+            }
+            None => 0.0,
+        };
         let file = walk::frame_file(&a.output, i);
         write_png(&file, image.width, image.height, &image.rgb).map_err(cli_error)?;
         if let Some(d) = &a.depth_out {
@@ -543,13 +660,22 @@ fn walkthrough(
         }
         reported_missing = stats.cache.missing_blocks.len();
         let next = stats.cache.clone();
-        let f = FrameFigures::new(i, &file, (stats, step_ms), &before);
+        let mut f = FrameFigures::new(i, &file, (stats, step_ms), &before);
+        f.prefetch_ms = prefetch_ms;
         before = next;
         let p = &f.primary;
+        let prefetched = if look_ahead.is_some() {
+            format!(
+                " ({} prefetched, +{:.1} ms look-ahead)",
+                f.blocks_prefetched, f.prefetch_ms
+            )
+        } else {
+            String::new()
+        };
         let _ = writeln!(
             out,
             "frame {i:4}: {:8.1} ms (+{:.1} ms step) {:7.2} Mrays/s | tri {} voxel {} proxy {} miss {} | blocks \
-             +{} requested +{} loaded +{} evicted {} pending | {:.1} MiB | hit {:.1}% | {}",
+             +{} requested +{} loaded{prefetched} +{} evicted {} pending {} missed | {:.1} MiB | hit {:.1}% | {}",
             f.ms,
             f.step_ms,
             f.rays_per_second / 1e6,
@@ -561,11 +687,49 @@ fn walkthrough(
             f.blocks_loaded,
             f.blocks_evicted,
             f.blocks_pending,
+            f.blocks_missed,
             f.working_set_mb,
             100.0 * f.hit_rate,
             file.display()
         );
         all.push(f);
+        files.push(file);
+    }
+    if a.accuracy {
+        let tolerance = a.accuracy_tolerance;
+        let measured = accuracy::measure(
+            scene,
+            cameras,
+            &files,
+            opts,
+            budget_bytes(a.cache_mb),
+            tolerance,
+        )?;
+        for (f, m) in all.iter_mut().zip(measured) {
+            let _ = writeln!(
+                out,
+                "accuracy {:4}: {:6.2} % of pixels equal to the full-detail reference, {:6.2} % \
+                 within {tolerance}",
+                f.frame,
+                100.0 * m.exact,
+                100.0 * m.within_tolerance
+            );
+            f.accuracy = Some(m);
+        }
+        let mut exact: Vec<f64> = all
+            .iter()
+            .filter_map(|f| f.accuracy)
+            .map(|m| m.exact)
+            .collect();
+        exact.sort_by(f64::total_cmp);
+        if let Some(min) = exact.first() {
+            let _ = writeln!(
+                out,
+                "accuracy: median {:.2} %, minimum {:.2} % of pixels equal to the reference",
+                100.0 * median_sorted(&exact),
+                100.0 * min
+            );
+        }
     }
     if let Some(s) = &a.stats_json {
         write_json(s, &all)?;

@@ -33,7 +33,7 @@ use rustc_hash::FxHashMap as HashMap;
 use oocfmt::records::{Sample, Voxel, MAX_TREE_DEPTH, PROXY_DIRECTIONS};
 
 use crate::blocks::{DNode, Plane, Shown, TreeletData, TriangleData, NONE};
-use crate::cache::BlockCache;
+use crate::cache::{BlockCache, Wish};
 use crate::intersect::{major_axis, ray_box, Ray};
 use crate::scene::Scene;
 
@@ -82,8 +82,8 @@ pub struct Memo {
     slots: Vec<OnceCell<Slot>>,
     /// Slots filled since the last [`Memo::clear`].
     touched: RefCell<Vec<u32>>,
-    wanted: RefCell<HashMap<u32, f32>>,
-    flushed: Vec<(u32, f32)>,
+    wanted: RefCell<HashMap<u32, Wish>>,
+    flushed: Vec<(u32, Wish)>,
     /// Nodes the rays traced with this memo visited (inner, LOD and leaf), since the last
     /// [`Memo::take_visited`].
     visited: Cell<u64>,
@@ -128,16 +128,13 @@ impl Memo {
         cache.request(&self.flushed);
     }
 
-    /// One ray wanted block `id` and did not get it. The priority of a request is the sum over
-    /// its rays of 1 plus the angular size of the region (radius over distance): many rays,
-    /// and big, near regions first.
+    /// One ray wanted block `id` and did not get it: see [`Wish::add`] for the priority.
     fn want(&self, id: u32, radius: f32, t: f32) {
-        let size = if t > 0.0 && radius.is_finite() {
-            (radius / t).min(1.0)
-        } else {
-            1.0
-        };
-        *self.wanted.borrow_mut().entry(id).or_insert(0.0) += 1.0 + size;
+        self.wanted
+            .borrow_mut()
+            .entry(id)
+            .or_default()
+            .add(radius, t);
     }
 
     fn slot(&self, id: u32, load: impl FnOnce() -> Slot) -> Option<&Slot> {

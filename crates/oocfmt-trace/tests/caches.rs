@@ -1,7 +1,9 @@
 //! The three caches against each other: at --poe 0, once the asynchronous cache has loaded
 //! what a view wants, blocking, mmap and async give the same image; the asynchronous cache
-//! stays within its budget under many render threads and many frames; a corrupted block is
-//! survived and reported; a cold walkthrough starts coarse and converges.
+//! stays within its budget under many render threads and many frames with every fetch order,
+//! eviction policy and with look-ahead prefetching; prefetching never changes the converged
+//! image; a corrupted block is survived and reported; a cold walkthrough starts coarse and
+//! converges.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
@@ -14,6 +16,9 @@ use oocfmt_build::convert::{convert, ConvertOptions};
 use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
 use oocfmt_build::layout::LayoutOptions;
 use oocfmt_build::progress::NoProgress;
+use oocfmt_trace::cache::asynchronous::AsyncOptions;
+use oocfmt_trace::cache::prefetch::LookAhead;
+use oocfmt_trace::cache::{Eviction, FetchOrder};
 use oocfmt_trace::render::{FrameStats, Image};
 use oocfmt_trace::{
     render, AsyncCache, BlockCache, BlockingCache, Camera, MmapCache, RenderOptions, Scene,
@@ -161,31 +166,54 @@ fn async_stays_within_a_tiny_budget_under_many_threads() {
         .num_threads(8)
         .build()
         .unwrap();
-    let cache = AsyncCache::new(Arc::clone(&scene), budget, 3);
-    pool.install(|| {
-        // Switching views every few frames, without waiting for the fetchers: blocks of the
-        // other view must be evicted to make room.
-        for f in 0..40 {
-            let cam = &cams[(f / 4) % cams.len()];
-            let (img, _) = render(&scene, &cache, cam, &POE0).unwrap();
-            assert_eq!(img.rgb.len(), (3 * W * H) as usize);
-            cache.end_frame();
-            let s = cache.stats();
-            assert!(
-                s.bytes_resident <= budget as u64 && s.peak_bytes_resident <= budget as u64,
-                "frame {f}: {s:?} over the budget {budget}"
-            );
+    for eviction in [Eviction::Lru, Eviction::SecondChance] {
+        for fetch_order in [FetchOrder::Afra, FetchOrder::Wald] {
+            for prefetch in [false, true] {
+                let opts = AsyncOptions {
+                    fetchers: 3,
+                    fetch_order,
+                    eviction,
+                    prefetch_bytes: if prefetch { budget as u64 / 4 } else { 0 },
+                    ..AsyncOptions::default()
+                };
+                let what = format!("{eviction}, {fetch_order}, prefetch {prefetch}");
+                let cache = AsyncCache::with_options(Arc::clone(&scene), budget, &opts);
+                let mut look_ahead = LookAhead::new(2, 16);
+                pool.install(|| {
+                    // Switching views every few frames, without waiting for the fetchers:
+                    // blocks of the other view must be evicted to make room.
+                    for f in 0..40 {
+                        let cam = &cams[(f / 4) % cams.len()];
+                        let (img, _) = render(&scene, &cache, cam, &POE0).unwrap();
+                        assert_eq!(img.rgb.len(), (3 * W * H) as usize);
+                        cache.end_frame();
+                        if prefetch {
+                            look_ahead.after_frame(&scene, &cache, cam, 0.0);
+                        }
+                        let s = cache.stats();
+                        assert!(
+                            s.bytes_resident <= budget as u64
+                                && s.peak_bytes_resident <= budget as u64,
+                            "{what}, frame {f}: {s:?} over the budget {budget}"
+                        );
+                    }
+                    for (cam, reference) in cams.iter().zip(&references) {
+                        let (img, _, _) = converge(&scene, &cache, cam);
+                        assert_eq!(img.rgb, reference.rgb, "{what}");
+                        assert_eq!(img.depth, reference.depth, "{what}");
+                    }
+                });
+                let s = cache.stats();
+                assert!(s.blocks_evicted > 0, "{what}: {s:?}");
+                assert!(s.peak_bytes_resident <= budget as u64, "{what}: {s:?}");
+                assert!(s.missing_blocks.is_empty(), "{what}: {s:?}");
+                assert_eq!(
+                    (s.fetch_order, s.eviction),
+                    (fetch_order.name(), eviction.name())
+                );
+            }
         }
-        for (cam, reference) in cams.iter().zip(&references) {
-            let (img, _, _) = converge(&scene, &cache, cam);
-            assert_eq!(img.rgb, reference.rgb);
-            assert_eq!(img.depth, reference.depth);
-        }
-    });
-    let s = cache.stats();
-    assert!(s.blocks_evicted > 0, "{s:?}");
-    assert!(s.peak_bytes_resident <= budget as u64, "{s:?}");
-    assert!(s.missing_blocks.is_empty(), "{s:?}");
+    }
 }
 
 #[test]
@@ -263,6 +291,74 @@ fn a_cold_walkthrough_starts_coarse_and_converges_to_the_reference() {
     assert_eq!(stats.primary.voxel + stats.primary.proxy, 0);
     assert_eq!(img.rgb, reference.rgb);
     assert_eq!(img.depth, reference.depth);
+}
+
+/// A cold walkthrough at --poe 0 along `cams`, then frames on the last camera until it
+/// converges: the converged image, and the blocks prefetched on the way.
+fn walk_and_converge(
+    scene: &Arc<Scene>,
+    cams: &[Camera],
+    opts: &AsyncOptions,
+    budget: usize,
+) -> (Image, u64) {
+    let cache = AsyncCache::with_options(Arc::clone(scene), budget, opts);
+    let mut look_ahead = LookAhead::new(2, 24);
+    for cam in cams {
+        render(scene, &cache, cam, &POE0).unwrap();
+        cache.end_frame();
+        if opts.prefetch_bytes > 0 {
+            look_ahead.after_frame(scene, &cache, cam, 0.0);
+        }
+    }
+    let (img, stats, _) = converge(scene, &cache, cams.last().unwrap());
+    assert_eq!(stats.primary.voxel + stats.primary.proxy, 0);
+    (img, cache.stats().blocks_prefetched)
+}
+
+#[test]
+fn prefetching_never_changes_the_converged_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = common::mandelbulb(dir.path(), 20_000);
+    let scene = Arc::new(Scene::open(&path).unwrap());
+    let cams = views(&scene);
+    // A steady approach and turn from the framing view to the close one: what the look-ahead
+    // predicts well.
+    let path_cams: Vec<Camera> = (0..10)
+        .map(|i| {
+            let u = f64::from(i) / 9.0;
+            let mix = |p: [f64; 3], q: [f64; 3]| [0, 1, 2].map(|k| p[k] + (q[k] - p[k]) * u);
+            Camera {
+                eye: mix(cams[0].eye, cams[1].eye),
+                look_at: mix(cams[0].look_at, cams[1].look_at),
+                ..cams[1]
+            }
+        })
+        .collect();
+    let blocking = BlockingCache::new(Arc::clone(&scene), 256 << 20);
+    let (reference, _) = render(&scene, &blocking, path_cams.last().unwrap(), &POE0).unwrap();
+    // A budget that holds everything, and one that makes both walks evict.
+    let everything = blocking.stats().bytes_resident as usize * 8;
+    for budget in [everything, blocking.stats().bytes_resident as usize * 3 / 2] {
+        let (without, none) =
+            walk_and_converge(&scene, &path_cams, &AsyncOptions::default(), budget);
+        assert_eq!(none, 0);
+        for eviction in [Eviction::Lru, Eviction::SecondChance] {
+            let opts = AsyncOptions {
+                eviction,
+                prefetch_bytes: 1 << 20,
+                ..AsyncOptions::default()
+            };
+            let (with, prefetched) = walk_and_converge(&scene, &path_cams, &opts, budget);
+            assert!(
+                prefetched > 0,
+                "{eviction}, budget {budget}: nothing was prefetched"
+            );
+            assert_eq!(with.rgb, without.rgb, "{eviction}, budget {budget}");
+            assert_eq!(with.depth, without.depth, "{eviction}, budget {budget}");
+            assert_eq!(with.rgb, reference.rgb);
+            assert_eq!(with.depth, reference.depth);
+        }
+    }
 }
 
 /// Frames of one view until no block is missing, each followed by the step between frames and

@@ -7,6 +7,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use rustc_hash::FxHashSet;
 
 use oocfmt_trace::blocks::{TreeletData, TriangleData};
+use oocfmt_trace::cache::Wish;
 use oocfmt_trace::{BlockCache, CacheStats};
 
 pub struct Touched<'a> {
@@ -49,7 +50,7 @@ impl BlockCache for Touched<'_> {
         self.inner.triangles(id)
     }
 
-    fn request(&self, wanted: &[(u32, f32)]) {
+    fn request(&self, wanted: &[(u32, Wish)]) {
         self.inner.request(wanted);
     }
 

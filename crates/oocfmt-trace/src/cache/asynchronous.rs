@@ -3,8 +3,11 @@
 //! falls back on the last voxel or the proxy of the missing subtree; the rays' wishes are
 //! gathered as requests with priorities. Fetcher threads read, check and decode requested
 //! blocks in the background. Between frames one step, [`BlockCache::end_frame`], publishes
-//! what the fetchers finished, evicts least-recently-used blocks the frame did not touch when
-//! room is needed, and hands the fetchers the new requests ranked by priority.
+//! what the fetchers finished, evicts blocks the frame did not touch (least recently used, or
+//! by a second-chance sweep: [`policy`]) and hands the fetchers the new requests ranked by
+//! priority (Áfra's or Wald's). Look-ahead prefetching (Correa et al. 2002,
+//! [`crate::cache::prefetch`]) adds a second queue, served only when no demand fetch waits and
+//! only up to a per-frame budget.
 //!
 //! During a frame the table of resident blocks is only read: render threads take a shared
 //! read lock (no writer is ever waiting during a frame) and mark the blocks they use with the
@@ -16,27 +19,53 @@
 //! frame) is dropped and asked for again later.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError, RwLock};
 use std::thread::JoinHandle;
 
 use rustc_hash::FxHashMap as HashMap;
 
-use super::{BlockCache, CacheStats, Data, MissingBlock};
+use super::policy::{self, Clock, Eviction, FetchOrder, Range, Verdict, HIGH_WATER};
+use super::{BlockCache, CacheStats, Data, MissingBlock, Wish};
 use crate::blocks::{TreeletData, TriangleData};
 use crate::scene::Scene;
 
 /// Request maps, so that tiles finishing together rarely meet on one lock.
 const SHARDS: usize = 16;
 
-/// Priority of the root block: nothing shows without it.
-const ROOT_PRIORITY: f32 = 1e9;
-
 /// How many block levels below a block a ray asked for the fetchers read ahead by default
 /// (the child blocks of each treelet block they decode, and theirs): rays reach one level
 /// further per frame at most, so without reading ahead a cold view fills in a level every
 /// frame or two.
 pub const DEFAULT_READ_AHEAD: u8 = 2;
+
+/// How an asynchronous cache fetches, evicts and prefetches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AsyncOptions {
+    /// Fetcher threads (at least one is started).
+    pub fetchers: usize,
+    /// Block levels read ahead below each block a ray asked for, into free room only (while
+    /// less than half the budget is held); 0 reads nothing ahead.
+    pub read_ahead: u8,
+    pub fetch_order: FetchOrder,
+    pub eviction: Eviction,
+    /// Decoded bytes look-ahead prefetching may load per frame ([`AsyncCache::prefetch`]); a
+    /// fetcher starts a prefetch only while less than this was loaded since the last call, so
+    /// a frame may go over by a block per fetcher.
+    pub prefetch_bytes: u64,
+}
+
+impl Default for AsyncOptions {
+    fn default() -> Self {
+        AsyncOptions {
+            fetchers: 2,
+            read_ahead: DEFAULT_READ_AHEAD,
+            fetch_order: FetchOrder::Afra,
+            eviction: Eviction::Lru,
+            prefetch_bytes: 0,
+        }
+    }
+}
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     // Every update under these locks is a few field writes or a container operation: a panic
@@ -49,6 +78,10 @@ struct Resident {
     bytes: usize,
     /// The last frame that used the block.
     last_used: AtomicU64,
+    /// The second-chance bit: set by the first use in a frame, cleared by the clock hand.
+    referenced: AtomicBool,
+    /// Loaded by prefetching and not used since.
+    prefetched: AtomicBool,
 }
 
 /// Work for the fetchers.
@@ -56,6 +89,9 @@ struct Resident {
 struct Queue {
     /// Block ids, lowest priority first: fetchers pop from the end.
     ids: Vec<u32>,
+    /// Prefetch requests, lowest priority first: served when `ids` is empty, within the
+    /// per-frame prefetch budget.
+    prefetch: Vec<u32>,
     /// Look-ahead work, served only when `ids` is empty and the cache has free room: block ids
     /// with how many more levels to read ahead below them.
     ahead: Vec<(u32, u8)>,
@@ -75,8 +111,19 @@ enum Outcome {
     NoRoom,
 }
 
-/// A block a fetcher read: its id, the outcome, and whether it was read ahead.
-type Fetched = (u32, Outcome, bool);
+/// Why a block was fetched.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Why {
+    /// A ray asked for it.
+    Demand,
+    /// A child of a block a fetcher decoded (kept in free room only).
+    ReadAhead,
+    /// A predicted view would want it.
+    Prefetch,
+}
+
+/// A block a fetcher read: its id, the outcome, and why it was read.
+type Fetched = (u32, Outcome, Why);
 
 /// What the cache and its fetchers share.
 struct Shared {
@@ -86,8 +133,8 @@ struct Shared {
     work: Condvar,
     /// Signalled when a fetcher finishes a block.
     finished: Condvar,
-    /// Blocks fetched since the last publication, or why they could not be, and whether they
-    /// were read ahead (kept only in free room, never evicting for them).
+    /// Blocks fetched since the last publication, or why they could not be, and why they were
+    /// fetched.
     done: Mutex<Vec<Fetched>>,
     /// Decoded bytes held: published plus fetched and waiting for publication. Never above
     /// `budget`: fetchers reserve before they hand a block over. Look-ahead reads stop at half.
@@ -97,6 +144,10 @@ struct Shared {
     budget: u64,
     /// Levels read ahead below each block a ray asked for (0: none).
     read_ahead: u8,
+    /// The per-frame prefetch budget and the decoded bytes prefetched since the last
+    /// [`AsyncCache::prefetch`].
+    prefetch_bytes: u64,
+    prefetch_spent: AtomicU64,
 }
 
 /// What only the step between frames changes.
@@ -108,24 +159,32 @@ struct Book {
     requested: u64,
     /// Look-ahead requests among `requested`.
     looked_ahead: u64,
+    prefetched: u64,
     dropped: u64,
     wanted_last_frame: u64,
     /// Handed to the fetchers and not yet published.
     fetching: rustc_hash::FxHashSet<u32>,
     missing: BTreeMap<u32, String>,
+    /// The second-chance ring (second-chance eviction only).
+    clock: Clock,
+    /// The range of the last frame's Wald priorities.
+    wald_range: Option<Range>,
 }
 
 pub struct AsyncCache {
     shared: Arc<Shared>,
     fetchers: Vec<JoinHandle<()>>,
     budget: usize,
+    fetch_order: FetchOrder,
+    eviction: Eviction,
     table: RwLock<HashMap<u32, Arc<Resident>>>,
     /// The frame being rendered; blocks used by it are not evicted.
     frame: AtomicU64,
-    requests: Vec<Mutex<HashMap<u32, f32>>>,
+    requests: Vec<Mutex<HashMap<u32, Wish>>>,
     book: Mutex<Book>,
     lookups: AtomicU64,
     hits: AtomicU64,
+    prefetch_used: AtomicU64,
 }
 
 impl AsyncCache {
@@ -144,6 +203,17 @@ impl AsyncCache {
         fetchers: usize,
         levels: u8,
     ) -> AsyncCache {
+        let opts = AsyncOptions {
+            fetchers,
+            read_ahead: levels,
+            ..AsyncOptions::default()
+        };
+        AsyncCache::with_options(scene, budget_bytes, &opts)
+    }
+
+    /// A cache of `budget_bytes` decoded bytes that fetches, evicts and prefetches as `opts`
+    /// says.
+    pub fn with_options(scene: Arc<Scene>, budget_bytes: usize, opts: &AsyncOptions) -> AsyncCache {
         let root = scene.metadata().root.map(|r| r.block);
         let shared = Arc::new(Shared {
             scene,
@@ -154,9 +224,11 @@ impl AsyncCache {
             held: AtomicU64::new(0),
             peak: AtomicU64::new(0),
             budget: budget_bytes as u64,
-            read_ahead: levels,
+            read_ahead: opts.read_ahead,
+            prefetch_bytes: opts.prefetch_bytes,
+            prefetch_spent: AtomicU64::new(0),
         });
-        let handles = (0..fetchers.max(1))
+        let handles = (0..opts.fetchers.max(1))
             .map(|_| {
                 let s = Arc::clone(&shared);
                 std::thread::spawn(move || fetch_loop(&s))
@@ -166,6 +238,8 @@ impl AsyncCache {
             shared,
             fetchers: handles,
             budget: budget_bytes,
+            fetch_order: opts.fetch_order,
+            eviction: opts.eviction,
             table: RwLock::new(HashMap::default()),
             frame: AtomicU64::new(0),
             requests: (0..SHARDS)
@@ -174,10 +248,11 @@ impl AsyncCache {
             book: Mutex::new(Book::default()),
             lookups: AtomicU64::new(0),
             hits: AtomicU64::new(0),
+            prefetch_used: AtomicU64::new(0),
         };
         if let Some(r) = root {
-            let outcome = cache.shared.load(r, false);
-            lock(&cache.shared.done).push((r, outcome, false));
+            let outcome = cache.shared.load(r, Why::Demand);
+            lock(&cache.shared.done).push((r, outcome, Why::Demand));
             let mut book = lock(&cache.book);
             cache.publish(&mut book, 0);
         }
@@ -193,7 +268,7 @@ impl AsyncCache {
     /// never call it.
     pub fn wait_for_fetchers(&self) {
         let mut q = lock(&self.shared.queue);
-        while !q.shutdown && (!q.ids.is_empty() || q.in_flight > 0) {
+        while !q.shutdown && (!q.ids.is_empty() || q.in_flight > 0 || self.prefetch_waits(&q)) {
             q = self
                 .shared
                 .finished
@@ -208,12 +283,29 @@ impl AsyncCache {
         let r = table.get(&id)?;
         let frame = self.frame.load(Relaxed);
         // A load first: most lookups of a frame find the mark already set and leave the
-        // cache line shared.
+        // cache line shared. The first use in a frame also sets the second-chance bit (the
+        // hand clears it between frames only).
         if r.last_used.load(Relaxed) != frame {
             r.last_used.store(frame, Relaxed);
+            r.referenced.store(true, Relaxed);
+            if r.prefetched.swap(false, Relaxed) {
+                self.prefetch_used.fetch_add(1, Relaxed);
+            }
         }
         self.hits.fetch_add(1, Relaxed);
         Some(r.data.clone())
+    }
+
+    /// A resident block, without counting a lookup or marking it used: what look-ahead probes
+    /// see (a guess must not change what is evicted).
+    pub(super) fn peek(&self, id: u32) -> Option<Data> {
+        let table = self.table.read().unwrap_or_else(PoisonError::into_inner);
+        table.get(&id).map(|r| r.data.clone())
+    }
+
+    /// Whether a prefetch is queued that the fetchers will still start (within the budget).
+    fn prefetch_waits(&self, q: &Queue) -> bool {
+        !q.prefetch.is_empty() && self.shared.prefetch_room()
     }
 
     /// A block referenced as one kind and stored as another: the file is malformed there, and
@@ -226,6 +318,56 @@ impl AsyncCache {
         None
     }
 
+    /// Queues look-ahead prefetch requests (see [`crate::cache::prefetch`]), replacing those
+    /// not started yet: the blocks of `wanted` not resident, missing or being fetched, in the
+    /// fetch order, as many of the highest-priority ones as the per-frame prefetch budget
+    /// allows by their estimated size. Room is made for them by evicting blocks the frame
+    /// just rendered did not use; the fetchers serve them only when no demand fetch waits.
+    /// Returns how many were queued; 0 when the cache has no prefetch budget.
+    pub fn prefetch(&self, mut wanted: Vec<(u32, Wish)>) -> usize {
+        let allowed = self.shared.prefetch_bytes;
+        if allowed == 0 {
+            return 0;
+        }
+        let mut book = lock(&self.book);
+        {
+            let table = self.table.read().unwrap_or_else(PoisonError::into_inner);
+            wanted.retain(|(id, _)| {
+                !table.contains_key(id)
+                    && !book.fetching.contains(id)
+                    && !book.missing.contains_key(id)
+            });
+        }
+        let (ranked, _) = policy::rank(wanted, self.fetch_order, book.wald_range, None);
+        // The highest-priority requests (at the end) that the budget allows.
+        let mut bytes = 0u64;
+        let first = ranked
+            .iter()
+            .rev()
+            .take_while(|&&id| {
+                bytes += self.shared.estimate(id);
+                bytes <= allowed
+            })
+            .count();
+        let kept = ranked.get(ranked.len() - first..).unwrap_or(&[]).to_vec();
+        let bytes: u64 = kept.iter().map(|&id| self.shared.estimate(id)).sum();
+        // The step after frame f has set the frame counter to f + 1: the blocks f used stay.
+        let just_rendered = self.frame.load(Relaxed).saturating_sub(1);
+        self.make_room(&mut book, just_rendered, bytes.min(self.shared.budget / 2));
+        let mut q = lock(&self.shared.queue);
+        for id in q.prefetch.drain(..) {
+            book.fetching.remove(&id);
+        }
+        book.fetching.extend(kept.iter().copied());
+        q.seen_ahead.extend(kept.iter().copied());
+        q.prefetch = kept;
+        let n = q.prefetch.len();
+        self.shared.prefetch_spent.store(0, Relaxed);
+        drop(q);
+        self.shared.work.notify_all();
+        n
+    }
+
     /// Publishes the fetched blocks (their room is reserved already).
     fn publish(&self, book: &mut Book, frame: u64) {
         let done = std::mem::take(&mut *lock(&self.shared.done));
@@ -233,7 +375,7 @@ impl AsyncCache {
             return;
         }
         let mut table = self.table.write().unwrap_or_else(PoisonError::into_inner);
-        for (id, outcome, ahead) in done {
+        for (id, outcome, why) in done {
             book.fetching.remove(&id);
             let data = match outcome {
                 Outcome::Loaded(d) => d,
@@ -242,7 +384,7 @@ impl AsyncCache {
                     continue;
                 }
                 Outcome::NoRoom => {
-                    if !ahead {
+                    if why == Why::Demand {
                         book.dropped += 1;
                     }
                     continue;
@@ -257,44 +399,92 @@ impl AsyncCache {
             }
             book.resident_bytes += bytes;
             book.loaded += 1;
-            if ahead {
-                book.looked_ahead += 1;
-            }
+            // A block read ahead is unused so far: the first to go when room is needed. A
+            // prefetched one counts as used by the frame that predicted it (the one before):
+            // evicting it before the predicted view comes would waste the read.
+            let (last_used, referenced) = match why {
+                Why::Demand => (frame, true),
+                Why::ReadAhead => {
+                    book.looked_ahead += 1;
+                    (0, false)
+                }
+                Why::Prefetch => {
+                    book.prefetched += 1;
+                    (frame.saturating_sub(1), true)
+                }
+            };
             table.insert(
                 id,
                 Arc::new(Resident {
                     data,
                     bytes,
-                    // A block read ahead is unused so far: the first to go when room is needed.
-                    last_used: AtomicU64::new(if ahead { 0 } else { frame }),
+                    last_used: AtomicU64::new(last_used),
+                    referenced: AtomicBool::new(referenced),
+                    prefetched: AtomicBool::new(why == Why::Prefetch),
                 }),
             );
+            if self.eviction == Eviction::SecondChance {
+                book.clock.insert(id);
+            }
         }
     }
 
-    /// Evicts least-recently-used blocks that frame `frame` did not use until `wanted` more
-    /// bytes fit the budget, or nothing is left to evict.
+    /// Makes room for `wanted` more bytes by evicting blocks that frame `frame` (or a later
+    /// one) did not use, as the eviction policy says: least recently used first until they
+    /// fit; or, second chance, a sweep until they fit and the cache is at most at its
+    /// high-water mark. Stops when nothing more can go.
     fn make_room(&self, book: &mut Book, frame: u64, wanted: u64) {
-        let held = |s: &Shared| s.held.load(Relaxed);
-        if held(&self.shared) + wanted <= self.shared.budget {
+        let held = || self.shared.held.load(Relaxed);
+        let budget = self.shared.budget;
+        let target = match self.eviction {
+            Eviction::Lru => budget.saturating_sub(wanted),
+            Eviction::SecondChance => budget
+                .saturating_sub(wanted)
+                .min((budget as f64 * HIGH_WATER) as u64),
+        };
+        if held() <= target {
             return;
         }
         let mut table = self.table.write().unwrap_or_else(PoisonError::into_inner);
-        // Least recently used first (ties by id, for repeatable runs).
-        let mut victims: Vec<(u64, u32)> = table
-            .iter()
-            .map(|(&id, r)| (r.last_used.load(Relaxed), id))
-            .filter(|&(used, _)| used < frame)
-            .collect();
-        victims.sort_unstable();
-        for (_, victim) in victims {
-            if held(&self.shared) + wanted <= self.shared.budget {
-                break;
-            }
-            if let Some(r) = table.remove(&victim) {
+        let evict = |table: &mut HashMap<u32, Arc<Resident>>, book: &mut Book, id: u32| {
+            if let Some(r) = table.remove(&id) {
                 book.resident_bytes -= r.bytes;
                 book.evicted += 1;
                 self.shared.held.fetch_sub(r.bytes as u64, Relaxed);
+            }
+        };
+        match self.eviction {
+            Eviction::Lru => {
+                // Least recently used first (ties by id, for repeatable runs).
+                let mut victims: Vec<(u64, u32)> = table
+                    .iter()
+                    .map(|(&id, r)| (r.last_used.load(Relaxed), id))
+                    .filter(|&(used, _)| used < frame)
+                    .collect();
+                victims.sort_unstable();
+                for (_, victim) in victims {
+                    if held() <= target {
+                        break;
+                    }
+                    evict(&mut table, book, victim);
+                }
+            }
+            Eviction::SecondChance => {
+                let mut clock = std::mem::take(&mut book.clock);
+                clock.sweep(
+                    |id| {
+                        let Some(r) = table.get(&id) else {
+                            return Verdict::Remove;
+                        };
+                        if r.last_used.load(Relaxed) >= frame || r.referenced.swap(false, Relaxed) {
+                            return Verdict::Keep;
+                        }
+                        evict(&mut table, book, id);
+                        Verdict::Remove
+                    },
+                    || held() <= target,
+                );
+                book.clock = clock;
             }
         }
     }
@@ -302,13 +492,13 @@ impl AsyncCache {
 
 impl Shared {
     /// Reads and decodes block `id` and reserves room for it.
-    fn load(&self, id: u32, ahead: bool) -> Outcome {
+    fn load(&self, id: u32, why: Why) -> Outcome {
         let data = match Data::load(&self.scene, id) {
             Ok(d) => d,
             Err(e) => return Outcome::Failed(e),
         };
         let bytes = data.bytes() as u64;
-        if bytes > self.budget && !ahead {
+        if bytes > self.budget && why == Why::Demand {
             return Outcome::Failed(format!(
                 "the decoded block needs {bytes} bytes, over the cache budget of {}",
                 self.budget
@@ -337,36 +527,52 @@ impl Shared {
             .entry(id)
             .map_or(0, |e| 3 * u64::from(e.raw_length))
     }
+
+    /// Whether this frame's prefetch budget allows starting another prefetch.
+    fn prefetch_room(&self) -> bool {
+        self.prefetch_spent.load(Relaxed) < self.prefetch_bytes
+    }
 }
 
 fn fetch_loop(s: &Shared) {
     loop {
-        let (id, levels, ahead) = {
+        let (id, levels, why) = {
             let mut q = lock(&s.queue);
             loop {
                 if q.shutdown {
                     return;
                 }
+                // Demand first, then prefetches within the frame's budget, then reading ahead
+                // into free room.
                 if let Some(id) = q.ids.pop() {
                     q.in_flight += 1;
-                    break (id, s.read_ahead, false);
+                    break (id, s.read_ahead, Why::Demand);
+                }
+                if s.prefetch_room() {
+                    if let Some(id) = q.prefetch.pop() {
+                        q.in_flight += 1;
+                        break (id, 0, Why::Prefetch);
+                    }
                 }
                 let room = s.held.load(Relaxed) < s.budget / 2;
                 if let Some((id, levels)) = q.ahead.pop().filter(|_| room) {
                     q.in_flight += 1;
-                    break (id, levels, true);
+                    break (id, levels, Why::ReadAhead);
                 }
                 q = s.work.wait(q).unwrap_or_else(PoisonError::into_inner);
             }
         };
-        let outcome = s.load(id, ahead);
+        let outcome = s.load(id, why);
+        if let (Why::Prefetch, Outcome::Loaded(d)) = (why, &outcome) {
+            s.prefetch_spent.fetch_add(d.bytes() as u64, Relaxed);
+        }
         let children: Vec<u32> = match &outcome {
             Outcome::Loaded(Data::Treelets(d)) if levels > 0 => {
                 d.lods.iter().map(|l| l.child_block).collect()
             }
             _ => Vec::new(),
         };
-        lock(&s.done).push((id, outcome, ahead));
+        lock(&s.done).push((id, outcome, why));
         let mut q = lock(&s.queue);
         q.in_flight -= 1;
         for c in children {
@@ -395,10 +601,10 @@ impl BlockCache for AsyncCache {
         }
     }
 
-    fn request(&self, wanted: &[(u32, f32)]) {
-        for &(id, p) in wanted {
-            let mut shard = lock(&self.requests[id as usize % SHARDS]);
-            *shard.entry(id).or_insert(0.0) += p;
+    fn request(&self, wanted: &[(u32, Wish)]) {
+        for (id, w) in wanted {
+            let mut shard = lock(&self.requests[*id as usize % SHARDS]);
+            shard.entry(*id).or_default().merge(w);
         }
     }
 
@@ -408,46 +614,51 @@ impl BlockCache for AsyncCache {
         let root = self.shared.scene.metadata().root.map(|r| r.block);
         // What the frame wanted, before publishing: a block that arrived during the frame
         // still counts as wanted by it.
-        let mut ranked: Vec<(f32, u32)> = Vec::new();
+        let mut wanted: Vec<(u32, Wish)> = Vec::new();
         for shard in &self.requests {
-            for (id, p) in lock(shard).drain() {
-                if !book.missing.contains_key(&id) {
-                    let p = if Some(id) == root { ROOT_PRIORITY } else { p };
-                    ranked.push((p, id));
-                }
-            }
+            wanted.extend(
+                lock(shard)
+                    .drain()
+                    .filter(|(id, _)| !book.missing.contains_key(id)),
+            );
         }
-        book.wanted_last_frame = ranked.len() as u64;
+        book.wanted_last_frame = wanted.len() as u64;
         self.publish(&mut book, frame);
         {
+            // Blocks queued and not started yet are taken back before this frame's requests
+            // are filtered, so that one still wanted is queued again at its new priority (and
+            // one no longer wanted is forgotten). Prefetches too: the next prediction remakes
+            // that list, and a block this frame asks for must wait as demand, not as a guess.
+            let mut q = lock(&self.shared.queue);
+            let queued = std::mem::take(&mut q.ids);
+            for id in queued.into_iter().chain(q.prefetch.drain(..)) {
+                book.fetching.remove(&id);
+            }
+        }
+        {
             let table = self.table.read().unwrap_or_else(PoisonError::into_inner);
-            ranked.retain(|(_, id)| !table.contains_key(id) && !book.fetching.contains(id));
+            wanted.retain(|(id, _)| !table.contains_key(id) && !book.fetching.contains(id));
         }
         // Room for what is asked, up to half the budget: the rest of the requests fetch into
         // room that later steps make.
-        let wanted: u64 = ranked.iter().map(|&(_, id)| self.shared.estimate(id)).sum();
-        self.make_room(&mut book, frame, wanted.min(self.shared.budget / 2));
-        // Lowest first, as the fetchers pop from the end.
-        ranked.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)));
+        let bytes: u64 = wanted.iter().map(|&(id, _)| self.shared.estimate(id)).sum();
+        self.make_room(&mut book, frame, bytes.min(self.shared.budget / 2));
+        let (ranked, range) = policy::rank(wanted, self.fetch_order, book.wald_range, root);
+        if range.is_some() {
+            book.wald_range = range;
+        }
         book.requested += ranked.len() as u64;
         {
             let mut q = lock(&self.shared.queue);
-            // Blocks queued for the last frame and not wanted by this one are forgotten; the
-            // ones still wanted are among this frame's requests.
-            for id in q.ids.drain(..) {
-                book.fetching.remove(&id);
-            }
             // Reading ahead follows the blocks rays asked for; a new frame starts it afresh,
             // skipping what is resident or asked for.
             q.ahead.clear();
             q.seen_ahead.clear();
             let table = self.table.read().unwrap_or_else(PoisonError::into_inner);
             q.seen_ahead.extend(table.keys().copied());
-            q.seen_ahead.extend(ranked.iter().map(|&(_, id)| id));
-            for &(_, id) in &ranked {
-                book.fetching.insert(id);
-            }
-            q.ids = ranked.into_iter().map(|(_, id)| id).collect();
+            q.seen_ahead.extend(ranked.iter().copied());
+            book.fetching.extend(ranked.iter().copied());
+            q.ids = ranked;
         }
         self.shared.work.notify_all();
         self.frame.store(frame + 1, Relaxed);
@@ -457,10 +668,12 @@ impl BlockCache for AsyncCache {
         let b = lock(&self.book);
         let pending = {
             let q = lock(&self.shared.queue);
-            q.ids.len() + q.in_flight
+            q.ids.len() + q.prefetch.len() + q.in_flight
         };
         CacheStats {
             mode: "async",
+            fetch_order: self.fetch_order.name(),
+            eviction: self.eviction.name(),
             budget_bytes: self.budget as u64,
             bytes_resident: b.resident_bytes as u64,
             peak_bytes_resident: self.shared.peak.load(Relaxed),
@@ -470,6 +683,8 @@ impl BlockCache for AsyncCache {
             blocks_evicted: b.evicted,
             blocks_requested: b.requested,
             blocks_looked_ahead: b.looked_ahead,
+            blocks_prefetched: b.prefetched,
+            blocks_prefetch_used: self.prefetch_used.load(Relaxed),
             blocks_pending: pending as u64,
             blocks_dropped: b.dropped,
             blocks_wanted_last_frame: b.wanted_last_frame,

@@ -170,11 +170,6 @@ impl BlockCache for BlockingCache {
             hits: t.hits,
             blocks_loaded: t.loaded,
             blocks_evicted: t.evicted,
-            blocks_requested: 0,
-            blocks_looked_ahead: 0,
-            blocks_pending: 0,
-            blocks_dropped: 0,
-            blocks_wanted_last_frame: 0,
             missing_blocks: t
                 .missing
                 .iter()
@@ -183,6 +178,8 @@ impl BlockCache for BlockingCache {
                     error: e.clone(),
                 })
                 .collect(),
+            // What only the asynchronous cache does stays 0.
+            ..CacheStats::default()
         }
     }
 }

@@ -4,6 +4,8 @@
 pub mod asynchronous;
 pub mod blocking;
 pub mod mmap;
+pub mod policy;
+pub mod prefetch;
 
 use std::sync::Arc;
 
@@ -15,15 +17,16 @@ use crate::scene::Scene;
 pub use asynchronous::AsyncCache;
 pub use blocking::BlockingCache;
 pub use mmap::MmapCache;
+pub use policy::{Eviction, FetchOrder};
 
 pub trait BlockCache: Send + Sync {
     /// Treelet block `id`, or None when it is not available: missing for good (it failed to
     /// read or decode), or, in an asynchronous cache, not loaded yet.
     fn treelets(&self, id: u32) -> Option<Arc<TreeletData>>;
     fn triangles(&self, id: u32) -> Option<Arc<TriangleData>>;
-    /// Blocks the rays of one tile wanted and did not get, each with its priority (summed over
-    /// the rays). A cache that loads on demand ignores it.
-    fn request(&self, _wanted: &[(u32, f32)]) {}
+    /// Blocks the rays of one tile wanted and did not get, each with what the rays made of its
+    /// priority. A cache that loads on demand ignores it.
+    fn request(&self, _wanted: &[(u32, Wish)]) {}
     /// The step between two frames: an asynchronous cache publishes what its fetchers loaded,
     /// evicts and hands the fetchers the new requests. Render threads must not be inside a
     /// frame while it runs (it is correct then too, only less useful).
@@ -31,9 +34,43 @@ pub trait BlockCache: Send + Sync {
     fn stats(&self) -> CacheStats;
 }
 
+/// What the rays that wanted a block make of its priority, under either fetch order
+/// ([`policy::FetchOrder`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Wish {
+    /// Áfra: the sum over the rays of 1 plus the region's angular size (radius over distance,
+    /// at most 1): many rays, and big, near regions first.
+    pub weight: f32,
+    /// Wald: the region's size over its distance, the largest over the rays (the nearest ray's);
+    /// +inf for a region the ray starts in or a block wanted without a region (the root).
+    pub size: f32,
+}
+
+impl Wish {
+    /// One more ray wanted the block of a region of `radius` it enters at distance `t`.
+    pub fn add(&mut self, radius: f32, t: f32) {
+        let size = if t > 0.0 && radius.is_finite() {
+            radius / t
+        } else {
+            f32::INFINITY
+        };
+        self.weight += 1.0 + size.min(1.0);
+        self.size = self.size.max(size);
+    }
+
+    /// Both rays' wishes.
+    pub fn merge(&mut self, other: &Wish) {
+        self.weight += other.weight;
+        self.size = self.size.max(other.size);
+    }
+}
+
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct CacheStats {
     pub mode: &'static str,
+    /// Asynchronous cache: the fetch order and the eviction policy (empty for the others).
+    pub fetch_order: &'static str,
+    pub eviction: &'static str,
     pub budget_bytes: u64,
     pub bytes_resident: u64,
     /// The most decoded bytes held at once; in the asynchronous cache that counts blocks
@@ -48,6 +85,10 @@ pub struct CacheStats {
     /// Asynchronous cache: of those, look-ahead requests (child blocks of the treelet blocks a
     /// frame used, fetched into free room at the lowest priority).
     pub blocks_looked_ahead: u64,
+    /// Asynchronous cache: blocks loaded by look-ahead prefetching (predicted views), over all
+    /// frames; and of those, the ones a frame has used since.
+    pub blocks_prefetched: u64,
+    pub blocks_prefetch_used: u64,
     /// Asynchronous cache: blocks queued or being fetched now.
     pub blocks_pending: u64,
     /// Asynchronous cache: blocks fetched but not kept, because every resident block was in
