@@ -31,26 +31,11 @@ Standard library only.
 
 import argparse
 import json
-import math
 import os
 import statistics
 import tempfile
 
-from benchlib import ROOT, require_binary, run
-
-
-def path_cameras(lo, hi, frames):
-    """From the default framing distance to half of it, orbiting 60 degrees around +y."""
-    c = [(a + b) / 2 for a, b in zip(lo, hi)]
-    radius = math.dist(lo, hi) / 2
-    cams = []
-    for i in range(frames):
-        s = i / max(frames - 1, 1)
-        d = radius * (2.8 - 1.2 * s)
-        a = math.radians(25 + 60 * s)
-        eye = [c[0] + d * math.sin(a), c[1] + 0.35 * d, c[2] + d * math.cos(a)]
-        cams.append({"eye": eye, "look_at": c})
-    return cams
+from benchlib import ROOT, path_cameras, require_binary, run
 
 
 def render_path(model, cams, work, name, extra):

@@ -1,6 +1,7 @@
 """What the benchmark scripts in tools/ share: where the release binary is, running it, and a
 line naming the machine the figures come from."""
 
+import math
 import os
 import platform
 import subprocess
@@ -34,3 +35,18 @@ def machine():
     except OSError:
         pass
     return f"{cpu}, {os.cpu_count()} logical cores, {platform.system()} {platform.release()}"
+
+
+def path_cameras(lo, hi, frames):
+    """The walkthrough of the benchmarks: from the default framing distance to half of it,
+    orbiting 60 degrees around +y, looking at the centre of the bounds lo..hi."""
+    c = [(a + b) / 2 for a, b in zip(lo, hi)]
+    radius = math.dist(lo, hi) / 2
+    cams = []
+    for i in range(frames):
+        s = i / max(frames - 1, 1)
+        d = radius * (2.8 - 1.2 * s)
+        a = math.radians(25 + 60 * s)
+        eye = [c[0] + d * math.sin(a), c[1] + 0.35 * d, c[2] + d * math.cos(a)]
+        cams.append({"eye": eye, "look_at": c})
+    return cams
