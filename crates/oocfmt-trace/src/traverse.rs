@@ -609,3 +609,11 @@ fn proxy_sample(samples: &[Sample; 18], ray: &Ray) -> Sample {
     }
     best.1
 }
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_stack_entry_is_24_bytes() {
+        assert_eq!(std::mem::size_of::<super::Entry<'_>>(), 24);
+    }
+}
