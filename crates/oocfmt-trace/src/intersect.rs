@@ -14,7 +14,6 @@ pub struct Ray {
     /// 1 / dir per axis; ±inf for a ±0 component.
     pub inv: [f32; 3],
     kx: usize,
-    ky: usize,
     kz: usize,
     sx: f32,
     sy: f32,
@@ -45,7 +44,6 @@ impl Ray {
             dir,
             inv: dir.map(|d| 1.0 / d),
             kx,
-            ky,
             kz,
             sx: dir[kx] / dir[kz],
             sy: dir[ky] / dir[kz],
@@ -57,7 +55,70 @@ impl Ray {
     /// Returns the hit whatever its distance: callers keep the nearest.
     #[inline]
     pub fn triangle(&self, a: &[f32; 3], b: &[f32; 3], c: &[f32; 3]) -> Option<TriHit> {
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        // One copy of the kernel per axis permutation: the components are picked by constant
+        // indices, in registers, instead of through the stack by the ray's indices. The branch
+        // goes the same way for every triangle of a ray.
+        match (self.kz, self.kx) {
+            (0, 1) => self.triangle_in::<1, 2, 0>(a, b, c),
+            (0, _) => self.triangle_in::<2, 1, 0>(a, b, c),
+            (1, 2) => self.triangle_in::<2, 0, 1>(a, b, c),
+            (1, _) => self.triangle_in::<0, 2, 1>(a, b, c),
+            (_, 0) => self.triangle_in::<0, 1, 2>(a, b, c),
+            (_, _) => self.triangle_in::<1, 0, 2>(a, b, c),
+        }
+    }
+
+    /// The nearest hit closer than `t_max` among the triangles `ids` of `positions` (the
+    /// first of equal distances; ids past `positions` are skipped): what testing them one by
+    /// one with [`Ray::triangle`] keeps, with the permutation picked once for the list.
+    #[inline]
+    pub fn nearest(
+        &self,
+        ids: &[u16],
+        positions: &[[[f32; 3]; 3]],
+        t_max: f32,
+    ) -> Option<(u16, TriHit)> {
+        match (self.kz, self.kx) {
+            (0, 1) => self.nearest_in::<1, 2, 0>(ids, positions, t_max),
+            (0, _) => self.nearest_in::<2, 1, 0>(ids, positions, t_max),
+            (1, 2) => self.nearest_in::<2, 0, 1>(ids, positions, t_max),
+            (1, _) => self.nearest_in::<0, 2, 1>(ids, positions, t_max),
+            (_, 0) => self.nearest_in::<0, 1, 2>(ids, positions, t_max),
+            (_, _) => self.nearest_in::<1, 0, 2>(ids, positions, t_max),
+        }
+    }
+
+    #[inline(always)]
+    fn nearest_in<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        ids: &[u16],
+        positions: &[[[f32; 3]; 3]],
+        mut t_max: f32,
+    ) -> Option<(u16, TriHit)> {
+        let mut best = None;
+        for &ti in ids {
+            let Some([a, b, c]) = positions.get(usize::from(ti)) else {
+                continue;
+            };
+            if let Some(h) = self.triangle_in::<KX, KY, KZ>(a, b, c) {
+                if h.t < t_max {
+                    t_max = h.t;
+                    best = Some((ti, h));
+                }
+            }
+        }
+        best
+    }
+
+    /// [`Ray::triangle`] for the ray's permutation (`KX`, `KY`, `KZ`).
+    #[inline(always)]
+    fn triangle_in<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        a: &[f32; 3],
+        b: &[f32; 3],
+        c: &[f32; 3],
+    ) -> Option<TriHit> {
+        let (kx, ky, kz) = (KX, KY, KZ);
         let o = &self.org;
         let a = [a[0] - o[0], a[1] - o[1], a[2] - o[2]];
         let b = [b[0] - o[0], b[1] - o[1], b[2] - o[2]];

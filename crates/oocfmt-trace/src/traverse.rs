@@ -230,7 +230,10 @@ fn plane_hit(p: &Plane, ray: &Ray, t0: f32, t1: f32) -> Option<f32> {
 
 /// A subtree waiting on the stack: its treelet block and node, the ray's interval in its cell,
 /// the axis of the face the ray entered the cell through (3: none, the ray starts inside) and
-/// the last voxel above it.
+/// how many LOD nodes lie above it, so that the last of them is its last voxel. The LOD nodes
+/// above every stacked subtree are on the path to the node being visited (the stack holds far
+/// siblings of that path), so one stack of them, cut back to `lods` when the entry is popped,
+/// serves all entries: an entry stays 24 bytes.
 #[derive(Clone, Copy)]
 struct Entry<'m> {
     data: &'m TreeletData,
@@ -238,7 +241,20 @@ struct Entry<'m> {
     t0: f32,
     t1: f32,
     axis: u8,
-    last: Option<LastVoxel<'m>>,
+    lods: u8,
+}
+
+/// The LOD nodes on the path to the node being visited, outermost first.
+type Lasts<'m> = ArrayVec<LastVoxel<'m>, { MAX_TREE_DEPTH as usize }>;
+
+/// Makes `lv` the last voxel of the path (dropping the outermost when a corrupt tree is deeper
+/// than any path can be) and returns the count to store in entries below it.
+fn push_last<'m>(lasts: &mut Lasts<'m>, lv: LastVoxel<'m>) -> u8 {
+    if lasts.is_full() {
+        lasts.remove(0);
+    }
+    let _ = lasts.try_push(lv);
+    lasts.len() as u8
 }
 
 /// The nearest surface found so far, borrowed from the memo until the ray is done.
@@ -293,6 +309,31 @@ fn ordered(
     }
 }
 
+/// What the split decisions of one ray read per axis, worked out once per ray rather than at
+/// every inner node.
+struct Axes {
+    org: [f32; 3],
+    inv: [f32; 3],
+    /// The positional tolerance over the direction: `eps · |inv|`.
+    tol: [f32; 3],
+    /// The left child comes first along the ray (positive direction).
+    left_first: [bool; 3],
+    /// The ray is parallel to the axis's planes (see [`split_sides`]).
+    parallel: [bool; 3],
+}
+
+impl Axes {
+    fn new(ray: &Ray, eps: f32) -> Axes {
+        Axes {
+            org: ray.org,
+            inv: ray.inv,
+            tol: ray.inv.map(|i| eps * i.abs()),
+            left_first: ray.dir.map(|d| d > 0.0),
+            parallel: [0, 1, 2].map(|k| ray.dir[k] == 0.0 || !ray.inv[k].is_finite()),
+        }
+    }
+}
+
 impl<'a> Tracer<'a> {
     /// `lod_c` = poe · (world size of a pixel per unit distance).
     pub fn new(scene: &'a Scene, cache: &'a dyn BlockCache, lod_c: f32) -> Tracer<'a> {
@@ -339,8 +380,10 @@ impl<'a> Tracer<'a> {
             t0,
             t1,
             axis: axis.map_or(3, |a| a as u8),
-            last: None,
+            lods: 0,
         });
+        let mut lasts = Lasts::new();
+        let axes = Axes::new(ray, eps);
         let mut best = Best::None;
         let mut best_t = t_max;
         let mut visited = 0u64;
@@ -354,8 +397,9 @@ impl<'a> Tracer<'a> {
                 mut t0,
                 mut t1,
                 mut axis,
-                mut last,
+                mut lods,
             } = e;
+            lasts.truncate(usize::from(lods));
             while let Some(&n) = data.nodes.get(node as usize) {
                 visited += 1;
                 match n {
@@ -365,25 +409,63 @@ impl<'a> Tracer<'a> {
                         left,
                         right,
                     } => {
-                        let sides = split_sides(ray, a, split, t0, t1, axis, eps);
-                        let child = |is_left| {
-                            let c = if is_left { left } else { right };
-                            (c != NONE).then_some(c)
-                        };
-                        let Some((near, far)) = ordered(sides, child) else {
-                            break;
-                        };
-                        if let Some((fc, f0, f1, fax)) = far {
-                            let _ = stack.try_push(Entry {
-                                data,
-                                node: fc,
-                                t0: f0,
-                                t1: f1,
-                                axis: fax,
-                                last,
-                            });
+                        let k = usize::from(a.min(2));
+                        if axes.parallel[k] {
+                            let sides = split_sides(ray, a, split, t0, t1, axis, eps);
+                            let child = |is_left| {
+                                let c = if is_left { left } else { right };
+                                (c != NONE).then_some(c)
+                            };
+                            let Some((near, far)) = ordered(sides, child) else {
+                                break;
+                            };
+                            if let Some((fc, f0, f1, fax)) = far {
+                                let _ = stack.try_push(Entry {
+                                    data,
+                                    node: fc,
+                                    t0: f0,
+                                    t1: f1,
+                                    axis: fax,
+                                    lods,
+                                });
+                            }
+                            (node, t0, t1, axis) = near;
+                            continue;
                         }
-                        (node, t0, t1, axis) = near;
+                        // `split_sides` and `ordered` for a ray that crosses the plane, written
+                        // out: this is most of the work of a ray.
+                        let ts = (split - axes.org[k]) * axes.inv[k];
+                        let tol = axes.tol[k];
+                        let (first, second) = if axes.left_first[k] {
+                            (left, right)
+                        } else {
+                            (right, left)
+                        };
+                        let before = ts + tol >= t0 && first != NONE;
+                        let after = ts - tol <= t1 && second != NONE;
+                        // max(ts, t0) then min(.., t1) as single instructions: ts is not NaN
+                        // when either side is taken (a NaN fails both tests above).
+                        let m = if t0 > ts { t0 } else { ts };
+                        let mid = if t1 < m { t1 } else { m };
+                        match (before, after) {
+                            (true, true) => {
+                                let _ = stack.try_push(Entry {
+                                    data,
+                                    node: second,
+                                    t0: mid,
+                                    t1,
+                                    axis: if ts >= t0 { a } else { axis },
+                                    lods,
+                                });
+                                (node, t1) = (first, mid);
+                            }
+                            (true, false) => (node, t1) = (first, mid),
+                            (false, true) => {
+                                axis = if ts >= t0 { a } else { axis };
+                                (node, t0) = (second, mid);
+                            }
+                            (false, false) => break,
+                        }
                     }
                     DNode::Lod {
                         axis: a,
@@ -393,14 +475,17 @@ impl<'a> Tracer<'a> {
                         let Some(l) = data.lods.get(lod as usize) else {
                             break;
                         };
-                        last = Some(LastVoxel {
-                            data,
-                            lod,
-                            radius: l.radius,
-                            t: t0,
-                            t1,
-                            axis,
-                        });
+                        lods = push_last(
+                            &mut lasts,
+                            LastVoxel {
+                                data,
+                                lod,
+                                radius: l.radius,
+                                t: t0,
+                                t1,
+                                axis,
+                            },
+                        );
                         let stop = self.lod_c > 0.0 && l.radius <= t0 * self.lod_c;
                         let child = if stop {
                             None
@@ -447,7 +532,7 @@ impl<'a> Tracer<'a> {
                                 t0: f0,
                                 t1: f1,
                                 axis: fax,
-                                last,
+                                lods,
                             });
                         }
                         data = child;
@@ -462,23 +547,17 @@ impl<'a> Tracer<'a> {
                             Some(td) => {
                                 let first = usize::from(first);
                                 let list = td.list.get(first..first + usize::from(count));
-                                for &ti in list.unwrap_or(&[]) {
-                                    let Some([a, b, c]) = td.positions.get(usize::from(ti)) else {
-                                        continue;
+                                let list = list.unwrap_or(&[]);
+                                if let Some((ti, h)) = ray.nearest(list, &td.positions, best_t) {
+                                    best_t = h.t;
+                                    best = Best::Triangle {
+                                        data: td,
+                                        triangle: u32::from(ti),
+                                        bary: h.bary,
                                     };
-                                    if let Some(h) = ray.triangle(a, b, c) {
-                                        if h.t < best_t {
-                                            best_t = h.t;
-                                            best = Best::Triangle {
-                                                data: td,
-                                                triangle: u32::from(ti),
-                                                bary: h.bary,
-                                            };
-                                        }
-                                    }
                                 }
                             }
-                            None => match last {
+                            None => match lasts.last() {
                                 Some(lv) => {
                                     memo.want(block, lv.radius, lv.t);
                                     if let Some((t, s)) = lv.shown(ray).filter(|&(t, _)| t < best_t)
@@ -591,4 +670,12 @@ fn proxy_sample(samples: &[Sample; 18], ray: &Ray) -> Sample {
         }
     }
     best.1
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_stack_entry_is_24_bytes() {
+        assert_eq!(std::mem::size_of::<super::Entry<'_>>(), 24);
+    }
 }

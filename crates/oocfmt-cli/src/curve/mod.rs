@@ -62,8 +62,8 @@ pub struct Args {
     /// Memory for decoded blocks per cache, in MiB (the reference's cache is unbounded)
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
     pub cache_mb: u64,
-    /// Fetcher threads of the async cache
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..=64))]
+    /// Fetcher threads of the async cache (default: half the cores, at least one)
+    #[arg(long, default_value_t = crate::render::default_fetchers(), value_parser = clap::value_parser!(u64).range(1..=64))]
     pub fetchers: u64,
     /// Async cache: block levels read ahead (as for `render`)
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_READ_AHEAD, value_parser = clap::value_parser!(u8).range(0..=16))]
