@@ -1,7 +1,6 @@
 //! `oocfmt render`: one frame, or a walkthrough, of a container with the reference CPU ray
 //! tracer.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -21,6 +20,7 @@ use oocfmt_trace::{
 
 use crate::accuracy::{self, Accuracy};
 use crate::error::{to_json, CliError, CliResult};
+use crate::out::outln;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -579,10 +579,7 @@ pub fn run(a: &Args) -> CliResult {
         write_json(s, &stats)?;
     }
     let p = &stats.primary;
-    // A closed stdout (`| head`) is not an error of the render: the files are written.
-    let mut out = std::io::stdout().lock();
-    let _ = writeln!(
-        out,
+    outln!(
         "wrote {} ({}x{}, --poe {}): {:.1} ms, {:.2} Mrays/s on {} threads",
         a.output.display(),
         image.width,
@@ -591,35 +588,36 @@ pub fn run(a: &Args) -> CliResult {
         stats.ms,
         stats.rays_per_second / 1e6,
         stats.threads
-    );
+    )?;
     if settle_frames > 1 {
-        let _ = writeln!(
-            out,
-            "async cache: {settle_frames} frames to load the view's blocks"
-        );
+        outln!("async cache: {settle_frames} frames to load the view's blocks")?;
     }
-    let _ = writeln!(
-        out,
+    outln!(
         "primary rays: {} triangle, {} voxel, {} R-LOD, {} proxy, {} miss",
-        p.triangle, p.voxel, p.rlod, p.proxy, p.miss
-    );
+        p.triangle,
+        p.voxel,
+        p.rlod,
+        p.proxy,
+        p.miss
+    )?;
     if stats.rays > stats.primary_rays || stats.spp > 1 {
-        let _ = writeln!(
-            out,
+        outln!(
             "rays: {} primary ({} per pixel), {} shadow, {} ambient occlusion",
-            stats.primary_rays, stats.spp, stats.shadow_rays, stats.ao_rays
-        );
+            stats.primary_rays,
+            stats.spp,
+            stats.shadow_rays,
+            stats.ao_rays
+        )?;
     }
     let c = &stats.cache;
-    let _ = writeln!(
-        out,
+    outln!(
         "blocks: {} loaded, {} evicted, {:.1} MiB resident (peak {:.1} MiB of {} MiB)",
         c.blocks_loaded,
         c.blocks_evicted,
         c.bytes_resident as f64 / 1048576.0,
         c.peak_bytes_resident as f64 / 1048576.0,
         a.cache_mb
-    );
+    )?;
     for b in &c.missing_blocks {
         eprintln!("oocfmt: warning: block {} is missing: {}", b.id, b.error);
     }
@@ -643,7 +641,6 @@ fn walkthrough(
         }
         _ => None,
     };
-    let mut out = std::io::stdout().lock();
     let mut all = Vec::with_capacity(cameras.len());
     let mut files = Vec::with_capacity(cameras.len());
     let mut before = c.stats();
@@ -681,9 +678,7 @@ fn walkthrough(
         } else {
             String::new()
         };
-        let _ = writeln!(
-            out,
-            "frame {i:4}: {:8.1} ms (+{:.1} ms step) {:7.2} Mrays/s | tri {} voxel {} proxy {} miss {} | blocks \
+        outln!("frame {i:4}: {:8.1} ms (+{:.1} ms step) {:7.2} Mrays/s | tri {} voxel {} proxy {} miss {} | blocks \
              +{} requested +{} loaded{prefetched} +{} evicted {} pending {} missed | {:.1} MiB | hit {:.1}% | {}",
             f.ms,
             f.step_ms,
@@ -700,7 +695,7 @@ fn walkthrough(
             f.working_set_mb,
             100.0 * f.hit_rate,
             file.display()
-        );
+        )?;
         all.push(f);
         files.push(file);
     }
@@ -715,14 +710,13 @@ fn walkthrough(
             tolerance,
         )?;
         for (f, m) in all.iter_mut().zip(measured) {
-            let _ = writeln!(
-                out,
+            outln!(
                 "accuracy {:4}: {:6.2} % of pixels equal to the full-detail reference, {:6.2} % \
                  within {tolerance}",
                 f.frame,
                 100.0 * m.exact,
                 100.0 * m.within_tolerance
-            );
+            )?;
             f.accuracy = Some(m);
         }
         let mut exact: Vec<f64> = all
@@ -732,12 +726,11 @@ fn walkthrough(
             .collect();
         exact.sort_by(f64::total_cmp);
         if let Some(min) = exact.first() {
-            let _ = writeln!(
-                out,
+            outln!(
                 "accuracy: median {:.2} %, minimum {:.2} % of pixels equal to the reference",
                 100.0 * median_sorted(&exact),
                 100.0 * min
-            );
+            )?;
         }
     }
     if let Some(s) = &a.stats_json {

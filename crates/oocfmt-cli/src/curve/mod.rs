@@ -8,7 +8,6 @@ mod sheet;
 mod text;
 mod touched;
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -20,6 +19,7 @@ use oocfmt_trace::render::Endings;
 use oocfmt_trace::{BlockingCache, Camera, Image, RenderOptions, Scene};
 
 use crate::error::{CliError, CliResult};
+use crate::out::outln;
 use crate::render::{
     cli_error, frame, open_scene, settle, still_camera, stored_cameras, use_threads, write_json,
     Cache, View,
@@ -256,7 +256,7 @@ pub fn run(a: &Args) -> CliResult {
             }
         }
     }
-    print_table(a, &cameras, &reference, &rows);
+    print_table(a, &cameras, &reference, &rows)?;
     if let Some(p) = &a.json {
         let curve = Curve {
             schema: SCHEMA,
@@ -396,12 +396,14 @@ fn db(psnr: f64) -> String {
     }
 }
 
-fn print_table(a: &Args, cameras: &[Camera], reference: &Reference, rows: &[Row]) {
-    // A closed stdout (`| head`) is not an error of the measurement: the files are written.
-    let mut out = std::io::stdout().lock();
+fn print_table(
+    a: &Args,
+    cameras: &[Camera],
+    reference: &Reference,
+    rows: &[Row],
+) -> Result<(), CliError> {
     let (w, h) = a.view.size;
-    let _ = writeln!(
-        out,
+    outln!(
         "{}: {w}x{h}, {} camera(s), {} threads; warm caches, median of {} timed frame(s); \
          error against PoE 0 with a blocking cache ({:.1} ms cold)",
         a.model.display(),
@@ -409,22 +411,18 @@ fn print_table(a: &Args, cameras: &[Camera], reference: &Reference, rows: &[Row]
         rayon::current_num_threads(),
         a.repeat,
         reference.ms / cameras.len().max(1) as f64,
-    );
-    let _ = writeln!(
-        out,
-        "{:<8} {:<5} {:>5} {:>9} {:>8} {:>9} {:>8} {:>7} {:>6} {:>6} {:>6} {:>6} {:>6} {:>7} {:>6} {:>7} {:>7} {:>8} {:>9} {:>9}",
+    )?;
+    outln!("{:<8} {:<5} {:>5} {:>9} {:>8} {:>9} {:>8} {:>7} {:>6} {:>6} {:>6} {:>6} {:>6} {:>7} {:>6} {:>7} {:>7} {:>8} {:>9} {:>9}",
         "cache", "lod", "poe", "ms", "Mrays/s", "nodes/ray", "WS MiB", "blocks", "tri%", "voxel%",
         "rlod%", "proxy%", "miss%", "RMSE", "PSNR", "SSIM", format!("<={}%", a.tolerance), "hit/miss",
         "depth med", "depth max"
-    );
+    )?;
     for r in rows {
         let p = &r.primary;
         let n = (p.triangle + p.voxel + p.rlod + p.proxy + p.miss).max(1) as f64;
         let pct = |x: u64| 100.0 * x as f64 / n;
         let e = &r.error;
-        let _ = writeln!(
-            out,
-            "{:<8} {:<5} {:>5} {:>9.2} {:>8.2} {:>9.1} {:>8.1} {:>7} {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>7.3} {:>6} {:>7.4} {:>7.2} {:>8} {:>9.2e} {:>9.2e}",
+        outln!("{:<8} {:<5} {:>5} {:>9.2} {:>8.2} {:>9.1} {:>8.1} {:>7} {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>7.3} {:>6} {:>7.4} {:>7.2} {:>8} {:>9.2e} {:>9.2e}",
             r.cache,
             r.lod,
             r.poe,
@@ -445,8 +443,9 @@ fn print_table(a: &Args, cameras: &[Camera], reference: &Reference, rows: &[Row]
             e.depth.hit_miss_differ,
             e.depth.median_relative,
             e.depth.max_relative,
-        );
+        )?;
     }
+    Ok(())
 }
 
 /// The file name of `model` for titles.
