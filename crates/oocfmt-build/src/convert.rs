@@ -66,8 +66,6 @@ pub enum ConvertError {
     Format(#[from] oocfmt::Error),
     #[error(transparent)]
     OutOfCore(#[from] OocError),
-    #[error("R-LODs are built in core only: {triangles} triangles exceed the {limit}-byte memory limit (raise --mem-limit, or convert with --lod voxel)")]
-    RlodOutOfCore { triangles: u64, limit: u64 },
     #[error("{0}: unknown input format (expected .obj, .gltf or .glb)")]
     UnknownFormat(String),
     #[error("cannot make a folder for spill files next to {path}: {source}")]
@@ -169,12 +167,6 @@ pub fn convert(
     layout.origin = origin;
     layout.params.extend(opts.recentre.params(origin));
 
-    if soup.count > chunk_triangles && layout.write.lod.rlod {
-        return Err(ConvertError::RlodOutOfCore {
-            triangles: soup.count,
-            limit: opts.mem_limit,
-        });
-    }
     let (written, out_of_core) = if soup.count <= chunk_triangles {
         let mesh = soup.load_mesh()?;
         std::fs::remove_file(&soup.path).map_err(|e| OocError::spill(&soup.path, e))?;

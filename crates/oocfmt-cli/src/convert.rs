@@ -152,7 +152,6 @@ pub fn run(a: &Args) -> CliResult {
         ConvertError::Import(oocfmt_build::import::ImportError::Io { path, source }) => {
             CliError::Io { path, source }
         }
-        e @ ConvertError::RlodOutOfCore { .. } => CliError::Usage(e.to_string()),
         ConvertError::UnknownFormat(path) => CliError::Usage(format!(
             "{path}: unknown input format (expected .obj, .gltf or .glb)"
         )),

@@ -6,6 +6,21 @@
 //! treelet blocks by level, then triangle blocks, then proxy blocks.
 
 pub(crate) mod plan;
+
+/// The build parameters that say how the LOD data was made.
+pub(crate) fn lod_params(kinds: LodKinds, voxel_threshold: f32) -> Vec<(String, String)> {
+    let mut params = vec![
+        ("lod_sampling".into(), LOD_SAMPLING.into()),
+        ("voxel_threshold".into(), voxel_threshold.to_string()),
+    ];
+    // Recorded only off the default, so voxel-only files stay as they were.
+    if kinds != LodKinds::VOXEL {
+        params.push(("lod_kinds".into(), kinds.name().into()));
+        params.push(("rlod_fit".into(), RLOD_FIT.into()));
+    }
+    params
+}
+
 #[cfg(test)]
 pub(crate) mod tests;
 pub(crate) mod treelets;
@@ -326,13 +341,7 @@ fn metadata(
         Scene::default()
     };
     let mut params: Vec<(String, String)> = tree.params().to_vec();
-    params.push(("lod_sampling".into(), LOD_SAMPLING.into()));
-    params.push(("voxel_threshold".into(), opts.voxel_threshold.to_string()));
-    // Recorded only off the default, so voxel-only files stay as they were.
-    if plan.kinds != LodKinds::VOXEL {
-        params.push(("lod_kinds".into(), plan.kinds.name().into()));
-        params.push(("rlod_fit".into(), RLOD_FIT.into()));
-    }
+    params.extend(lod_params(plan.kinds, opts.voxel_threshold));
     params.push((
         "triangles_per_proxy".into(),
         opts.triangles_per_proxy.to_string(),

@@ -171,8 +171,11 @@ pub(crate) enum LodSource<'a> {
         threshold: f32,
         kinds: LodKinds,
     },
-    /// Computed elsewhere, by node.
-    Given(&'a dyn Fn(NodeId) -> Option<LodData>),
+    /// Computed elsewhere, by node: the LOD data and, when `kinds` has them, the R-LOD.
+    Given {
+        data: &'a dyn Fn(NodeId) -> Option<(LodData, Option<Rlod>)>,
+        kinds: LodKinds,
+    },
 }
 
 /// Plans the treelet blocks of `tree`, the scene's whole tree over `mesh`. `voxel_threshold`
@@ -241,10 +244,19 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
             }
             crate::lod::compute_with(mesh, tree, &lod_nodes, *threshold, &wants)
         }
-        LodSource::Given(given) => lod_nodes
-            .iter()
-            .map(|&n| given(n).ok_or(LayoutError::Internal("a LOD node has no LOD data")))
-            .collect::<Result<_, _>>()?,
+        LodSource::Given { data, kinds } => {
+            plan.kinds = *kinds;
+            let mut lod = Vec::with_capacity(lod_nodes.len());
+            for &n in &lod_nodes {
+                let (d, r) = data(n).ok_or(LayoutError::Internal("a LOD node has no LOD data"))?;
+                lod.push(d);
+                if kinds.rlod {
+                    plan.rlods
+                        .push(r.ok_or(LayoutError::Internal("a LOD node has no R-LOD"))?);
+                }
+            }
+            lod
+        }
     };
 
     let root_treelet = make_treelet(tree, &mut plan, root);

@@ -105,91 +105,205 @@ impl Moments {
 
 /// Fits the R-LOD plane of the triangles `tris` of `mesh` clipped to `cell`.
 pub fn fit(mesh: &Mesh, tris: &[u32], cell: Bounds) -> PlaneFit {
-    let centre: [f64; 3] =
-        std::array::from_fn(|k| (f64::from(cell.min[k]) + f64::from(cell.max[k])) / 2.0);
-    let lo: [f64; 3] = std::array::from_fn(|k| f64::from(cell.min[k]) - centre[k]);
-    let hi: [f64; 3] = std::array::from_fn(|k| f64::from(cell.max[k]) - centre[k]);
-    let mut m = Moments::default();
-    let mut scratch = Clip::default();
-    let clipped = |t: u32, scratch: &mut Clip| -> bool {
-        let Some(c) = mesh.corners(t as usize) else {
-            return false;
-        };
-        let p = c.map(|v| std::array::from_fn(|k| f64::from(v[k]) - centre[k]));
-        scratch.clip(p, lo, hi);
+    let mut moments = PlaneMoments::new(cell);
+    for &t in tris {
+        if let Some(c) = mesh.corners(t as usize) {
+            moments.add(c, || {
+                mesh.triangles
+                    .get(t as usize)
+                    .and_then(|idx| vertex_colour(mesh, idx))
+                    .unwrap_or_else(|| material_colour(mesh, t as usize))
+            });
+        }
+    }
+    let mut deviation = moments.deviation();
+    for &t in tris {
+        if let Some(c) = mesh.corners(t as usize) {
+            deviation.add(c);
+        }
+    }
+    deviation.finish()
+}
+
+/// A cell in f64, relative to its centre: sums stay small and exact where the scene is far
+/// from the origin.
+#[derive(Clone, Copy)]
+struct Frame {
+    centre: [f64; 3],
+    lo: [f64; 3],
+    hi: [f64; 3],
+}
+
+impl Frame {
+    fn new(cell: Bounds) -> Frame {
+        let centre: [f64; 3] =
+            std::array::from_fn(|k| (f64::from(cell.min[k]) + f64::from(cell.max[k])) / 2.0);
+        Frame {
+            centre,
+            lo: std::array::from_fn(|k| f64::from(cell.min[k]) - centre[k]),
+            hi: std::array::from_fn(|k| f64::from(cell.max[k]) - centre[k]),
+        }
+    }
+
+    /// Clips a triangle to the cell into `scratch.out`; false when nothing is left.
+    fn clip(&self, corners: [[f32; 3]; 3], scratch: &mut Clip) -> bool {
+        let p = corners.map(|v| std::array::from_fn(|k| f64::from(v[k]) - self.centre[k]));
+        scratch.clip(p, self.lo, self.hi);
         !scratch.out.is_empty()
-    };
-    for &t in tris {
-        if !clipped(t, &mut scratch) {
-            continue;
-        }
-        let colour = mesh
-            .triangles
-            .get(t as usize)
-            .and_then(|idx| vertex_colour(mesh, idx))
-            .unwrap_or_else(|| material_colour(mesh, t as usize));
-        m.add_polygon(&scratch.out, colour);
     }
-    let colour = if m.colour_weight > 0.0 {
-        m.colour.map(|c| c / m.colour_weight)
-    } else {
-        [1.0; 3]
-    };
-    let (point, normal) = if m.area > 0.0 {
-        let (mean, normal, _) = principal(m.first, m.second, m.area);
-        (mean, normal)
-    } else if m.vertices > 0.0 {
-        // No area (degenerate triangles, or only edges on the cell's faces): the same fit over
-        // the clipped vertices, each of weight one. Collinear vertices leave a choice of normals
-        // (any one perpendicular to their line), which Jacobi makes deterministically; a single
-        // point falls back on the triangles' orientation.
-        let (mean, normal, spread) = principal(m.vertex_sum, m.vertex_second, m.vertices);
-        (
-            mean,
-            if spread > 0.0 {
-                normal
-            } else {
-                unit_or_z(m.oriented)
-            },
-        )
-    } else {
-        ([0.0; 3], [0.0, 0.0, 1.0])
-    };
-    // Face the way the mesh's triangles do; a tie picks a positive major component.
-    let along = dot(normal, m.oriented);
-    let major = (0..3).fold(0, |b, k| {
-        if normal[k].abs() > normal[b].abs() {
-            k
+}
+
+/// The first pass of a fit: the moments of the triangles clipped to a cell, fed one triangle
+/// at a time, so the triangles may come from memory or stream from a spill file. The integrals
+/// are additive: triangles clipped to the cells of a partition sum to the same moments.
+pub struct PlaneMoments {
+    frame: Frame,
+    moments: Moments,
+    scratch: Clip,
+}
+
+impl PlaneMoments {
+    pub fn new(cell: Bounds) -> PlaneMoments {
+        PlaneMoments {
+            frame: Frame::new(cell),
+            moments: Moments::default(),
+            scratch: Clip::default(),
+        }
+    }
+
+    /// Adds one triangle; `colour` (linear RGB) is asked only when the triangle reaches the
+    /// cell.
+    pub fn add(&mut self, corners: [[f32; 3]; 3], colour: impl FnOnce() -> [f64; 3]) {
+        if self.frame.clip(corners, &mut self.scratch) {
+            self.moments.add_polygon(&self.scratch.out, colour());
+        }
+    }
+
+    /// The plane and its point relative to the cell's centre, as fitted (no rounding through
+    /// the absolute point).
+    fn plane_and_local_point(&self) -> (PlaneFit, [f64; 3]) {
+        let m = &self.moments;
+        let colour = if m.colour_weight > 0.0 {
+            m.colour.map(|c| c / m.colour_weight)
         } else {
-            b
-        }
-    });
-    let flip = along < 0.0 || (along == 0.0 && normal[major] < 0.0);
-    let normal = if flip { normal.map(|c| -c) } else { normal };
-    let mut plane = PlaneFit {
-        normal,
-        point: std::array::from_fn(|k| point[k] + centre[k]),
-        deviation: 0.0,
-        stored_deviation: 0.0,
-        colour,
-        area: m.area,
-    };
-    // Distance from the stored plane, relative to the centre: n·(v + c) − d.
-    let (sn, sd) = plane.stored_plane();
-    let sn = sn.map(f64::from);
-    let shift = dot(sn, centre) - f64::from(sd);
-    for &t in tris {
-        if clipped(t, &mut scratch) {
-            for v in &scratch.out {
-                plane.deviation = plane.deviation.max(dot(normal, sub(*v, point)).abs());
-                plane.stored_deviation = plane.stored_deviation.max((dot(sn, *v) + shift).abs());
+            [1.0; 3]
+        };
+        let (point, normal) = if m.area > 0.0 {
+            let (mean, normal, _) = principal(m.first, m.second, m.area);
+            (mean, normal)
+        } else if m.vertices > 0.0 {
+            // No area (degenerate triangles, or only edges on the cell's faces): the same fit
+            // over the clipped vertices, each of weight one. Collinear vertices leave a choice
+            // of normals (any one perpendicular to their line), which Jacobi makes
+            // deterministically; a single point falls back on the triangles' orientation.
+            let (mean, normal, spread) = principal(m.vertex_sum, m.vertex_second, m.vertices);
+            (
+                mean,
+                if spread > 0.0 {
+                    normal
+                } else {
+                    unit_or_z(m.oriented)
+                },
+            )
+        } else {
+            ([0.0; 3], [0.0, 0.0, 1.0])
+        };
+        // Face the way the mesh's triangles do; a tie picks a positive major component.
+        let along = dot(normal, m.oriented);
+        let major = (0..3).fold(0, |b, k| {
+            if normal[k].abs() > normal[b].abs() {
+                k
+            } else {
+                b
             }
+        });
+        let flip = along < 0.0 || (along == 0.0 && normal[major] < 0.0);
+        let normal = if flip { normal.map(|c| -c) } else { normal };
+        let plane = PlaneFit {
+            normal,
+            point: std::array::from_fn(|k| point[k] + self.frame.centre[k]),
+            deviation: 0.0,
+            stored_deviation: 0.0,
+            colour,
+            area: m.area,
+        };
+        (plane, point)
+    }
+
+    /// The plane of the moments so far, with no deviation yet ([`Deviation`] measures it).
+    pub fn plane(&self) -> PlaneFit {
+        self.plane_and_local_point().0
+    }
+
+    /// The second pass over the same cell.
+    pub fn deviation(&self) -> Deviation {
+        let (plane, point) = self.plane_and_local_point();
+        Deviation::in_frame(&plane, self.frame, point)
+    }
+}
+
+/// The second pass of a fit: the largest distance of the clipped triangles from a plane
+/// already fitted, both as fitted and as stored. Fed one triangle at a time like
+/// [`PlaneMoments`]; the triangles may be clipped to any cell inside the fit's cell (the pieces
+/// of a partition have the same largest distance as the whole), and [`PlaneFit::widen`]
+/// combines the pieces.
+pub struct Deviation {
+    plane: PlaneFit,
+    frame: Frame,
+    /// The fitted plane's point relative to the frame's centre.
+    point: [f64; 3],
+    stored_normal: [f64; 3],
+    /// n·c − d of the stored plane at the frame's centre.
+    shift: f64,
+    scratch: Clip,
+}
+
+impl Deviation {
+    /// Measures against `plane` the triangles clipped to `cell`.
+    pub fn new(plane: &PlaneFit, cell: Bounds) -> Deviation {
+        let frame = Frame::new(cell);
+        let point = std::array::from_fn(|k| plane.point[k] - frame.centre[k]);
+        Deviation::in_frame(plane, frame, point)
+    }
+
+    fn in_frame(plane: &PlaneFit, frame: Frame, point: [f64; 3]) -> Deviation {
+        let (sn, sd) = plane.stored_plane();
+        let stored_normal = sn.map(f64::from);
+        Deviation {
+            plane: *plane,
+            point,
+            stored_normal,
+            shift: dot(stored_normal, frame.centre) - f64::from(sd),
+            frame,
+            scratch: Clip::default(),
         }
     }
-    plane
+
+    pub fn add(&mut self, corners: [[f32; 3]; 3]) {
+        if !self.frame.clip(corners, &mut self.scratch) {
+            return;
+        }
+        let p = &mut self.plane;
+        for v in &self.scratch.out {
+            p.deviation = p.deviation.max(dot(p.normal, sub(*v, self.point)).abs());
+            p.stored_deviation = p
+                .stored_deviation
+                .max((dot(self.stored_normal, *v) + self.shift).abs());
+        }
+    }
+
+    pub fn finish(self) -> PlaneFit {
+        self.plane
+    }
 }
 
 impl PlaneFit {
+    /// Folds in the deviations another piece of the same node measured against this plane.
+    pub fn widen(&mut self, piece: &PlaneFit) {
+        self.deviation = self.deviation.max(piece.deviation);
+        self.stored_deviation = self.stored_deviation.max(piece.stored_deviation);
+    }
+
     /// The record of this plane for a LOD node of enclosing radius `radius`. Its deviation
     /// bound holds for the plane as stored.
     pub fn record(&self, radius: f32) -> Rlod {

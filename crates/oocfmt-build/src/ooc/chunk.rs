@@ -20,12 +20,14 @@ use crate::layout::triangles::{
     encode_triangles, plan_triangles_with, LeafRef, TriangleCounts, VertexTable,
 };
 use crate::layout::{LayoutError, LayoutOptions};
+use crate::lod::rlod::{Deviation, PlaneFit};
 use crate::lod::{shade, triangle_area, LodData, Shade};
 use crate::mesh::{Bounds, Mesh};
 use crate::raycast::{clip_to_box, Ray, Tracer};
 use std::collections::BTreeMap;
 
-use oocfmt::records::Voxel;
+use oocfmt::records::{Rlod, Voxel};
+use rayon::prelude::*;
 
 /// The scene-wide facts every chunk is built with.
 pub struct SceneFacts {
@@ -35,6 +37,30 @@ pub struct SceneFacts {
     pub material_index: Option<rustc_hash::FxHashMap<Option<u32>, u32>>,
     pub attrs: u16,
     pub block_size: usize,
+}
+
+impl SceneFacts {
+    /// A triangle's linear RGB as the in-core LOD code reads it from a chunk's mesh: its
+    /// vertices' mean colour when the scene has vertex colours, else its material's diffuse
+    /// colour, else white.
+    pub fn colour(&self, t: &InputTriangle) -> [f64; 3] {
+        if self.schema.colours {
+            let mut sum = [0.0f64; 3];
+            for c in t.colours.unwrap_or([[255; 4]; 3]) {
+                for a in 0..3 {
+                    sum[a] += f64::from(c[a]) / 255.0 / 3.0;
+                }
+            }
+            return sum;
+        }
+        let index = self
+            .material_index
+            .as_ref()
+            .map(|map| map.get(&t.material).copied().unwrap_or(0));
+        index
+            .and_then(|i| self.schema.materials.as_ref()?.get(i as usize))
+            .map_or([1.0; 3], |m| m.diffuse.map(f64::from))
+    }
 }
 
 /// A block written to the spill file, by position.
@@ -63,6 +89,7 @@ pub enum UpperNode {
         child_block: u32,
         child_treelet: u32,
         lod: LodData,
+        rlod: Option<Rlod>,
     },
     Leaf(LeafRef),
 }
@@ -79,6 +106,9 @@ pub struct ChunkOut {
     pub counts: ChunkCounts,
     /// Area of the chunk's primary triangles.
     pub area: f64,
+    /// The R-LOD planes of the top LOD nodes above, as given, with the deviation of this
+    /// chunk's part of the surface.
+    pub plane_pieces: Vec<(usize, PlaneFit)>,
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -170,8 +200,10 @@ fn load_mesh(chunk: &Chunk, facts: &SceneFacts) -> Result<(Mesh, Vec<bool>), Ooc
     Ok((mesh, primary))
 }
 
-/// Builds chunk `chunk`, answers the pending rays of the top LOD nodes above it, and spills
-/// its blocks. `proxy_base` is the id of its first proxy.
+/// Builds chunk `chunk`, answers the pending rays of the top LOD nodes above it, measures its
+/// surface against their R-LOD `planes`, and spills its blocks. `proxy_base` is the id of its
+/// first proxy.
+#[allow(clippy::too_many_arguments)]
 pub fn build_chunk(
     chunk: &Chunk,
     facts: &SceneFacts,
@@ -179,9 +211,23 @@ pub fn build_chunk(
     layout: &LayoutOptions,
     proxy_base: u32,
     rays: &mut [&mut [PendingRay]],
+    planes: &[(usize, PlaneFit)],
     spill: &mut BlockSpill,
 ) -> Result<ChunkOut, OocError> {
     let (mesh, primary) = load_mesh(chunk, facts)?;
+    // The chunk's cell lies inside each top node's cell, and the chunks partition it.
+    let plane_pieces = planes
+        .par_iter()
+        .map(|(node, plane)| {
+            let mut d = Deviation::new(plane, chunk.cell);
+            for t in 0..mesh.triangles.len() {
+                if let Some(c) = mesh.corners(t) {
+                    d.add(c);
+                }
+            }
+            (*node, d.finish())
+        })
+        .collect();
     let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
     let nodes = build_cell(&mesh, all, chunk.cell, chunk.depth + 1, kd)?;
     let tree = KdTree::from_parts(&mesh, nodes, Some(NodeId(0)), chunk.cell, kd.params())?;
@@ -210,8 +256,7 @@ pub fn build_chunk(
             lod: LodSource::Sample {
                 mesh: &mesh,
                 threshold: layout.voxel_threshold,
-                // `convert` builds R-LODs in core only.
-                kinds: oocfmt::records::LodKinds::VOXEL,
+                kinds: layout.write.lod,
             },
             external: &external,
         },
@@ -267,6 +312,7 @@ pub fn build_chunk(
         proxies,
         counts,
         area,
+        plane_pieces,
     })
 }
 
@@ -282,6 +328,7 @@ pub(super) fn count_treelet(plan: &TreePlan, t: usize, counts: &mut ChunkCounts)
             Role::Lod => {
                 counts.lod_nodes += 1;
                 match plan.lod_data(n).map(|d| d.voxel) {
+                    _ if !plan.kinds.voxel => {}
                     Some(Voxel::Six(_)) => counts.voxels_six += 1,
                     _ => counts.voxels_single += 1,
                 }
@@ -342,6 +389,7 @@ fn upper_nodes(
                     lod: *plan
                         .lod_data(id)
                         .ok_or(LayoutError::Internal("a LOD node has no LOD data"))?,
+                    rlod: plan.rlod(id).copied(),
                 },
                 _ => {
                     return Err(

@@ -22,13 +22,14 @@ use rustc_hash::FxHashMap;
 use oocfmt::metadata::{Build, Counts, Provenance, Scene, Schema, TreeletRef};
 use oocfmt::{BlockKind, Metadata, WriteSummary};
 
-use crate::import::{compact_materials, PartSchema};
+use crate::import::{compact_materials, InputTriangle, PartSchema};
 use crate::kdtree::{KdBuildOptions, KdError, NodeId};
+use crate::layout::lod_params;
 use crate::layout::plan::{plan_tree_with, LodSource, PlanSpec};
 use crate::layout::treelets::encode_treelets;
 use crate::layout::triangles::LeafRef;
 use crate::layout::{LayoutError, LayoutOptions, RawBlock};
-use crate::lod::LOD_SAMPLING;
+use crate::lod::rlod::PlaneFit;
 use crate::progress::Progress;
 use chunk::{build_chunk, BlockSpill, ChunkCounts, ChunkOut, SceneFacts};
 use soup::Soup;
@@ -91,8 +92,6 @@ pub fn build(
         .with_block_size(1u64 << layout.write.block_size_log2.min(63))?;
     let budget = chunk_triangles.max(1);
     let bounds = soup.bounds;
-    let tree = split::split(&soup.path, soup.count, bounds, budget, dir, progress)?;
-
     let materials = soup.used_materials.iter().any(Option::is_some);
     let (_, table) = compact_materials(&soup.used_materials, soup.materials.clone())?;
     let schema = Schema {
@@ -117,6 +116,21 @@ pub fn build(
         attrs: schema.triangle_attributes(),
         block_size,
     };
+    let colour = |t: &InputTriangle| facts.colour(t);
+    let rlods = layout.write.lod.rlod.then_some(split::RlodMoments {
+        treelet_height: layout.treelet_height,
+        colour: &colour,
+    });
+    let tree = split::split(
+        &soup.path,
+        soup.count,
+        bounds,
+        budget,
+        dir,
+        rlods.as_ref(),
+        progress,
+    )?;
+    let mut planes: BTreeMap<usize, PlaneFit> = tree.planes.clone();
 
     let mut top_lod =
         top::top_lod_nodes(&tree, bounds, layout.treelet_height, layout.voxel_threshold);
@@ -131,7 +145,26 @@ pub fn build(
             .filter(|t| c.ancestors.contains(&t.node))
             .map(|t| t.rays.as_mut_slice())
             .collect();
-        let mut out = build_chunk(c, &facts, kd, layout, proxy_count, &mut rays, &mut spill)?;
+        let above: Vec<(usize, PlaneFit)> = c
+            .ancestors
+            .iter()
+            .filter_map(|a| planes.get(a).map(|p| (*a, *p)))
+            .collect();
+        let mut out = build_chunk(
+            c,
+            &facts,
+            kd,
+            layout,
+            proxy_count,
+            &mut rays,
+            &above,
+            &mut spill,
+        )?;
+        for (node, piece) in &out.plane_pieces {
+            if let Some(p) = planes.get_mut(node) {
+                p.widen(piece);
+            }
+        }
         std::fs::remove_file(&c.path).map_err(|e| OocError::spill(&c.path, e))?;
         let n = u32::try_from(out.proxies.len() / oocfmt::records::PROXY_LEN)
             .map_err(|_| LayoutError::TooMany("proxies"))?;
@@ -154,7 +187,17 @@ pub fn build(
             .filter(|(c, _)| c.ancestors.contains(&t.node))
             .map(|(_, o)| o.area)
             .sum();
-        given.insert(t.node, top::finish_top_lod(t, layout.voxel_threshold, area));
+        let rlod = match planes.get(&t.node) {
+            Some(p) => Some(p.record(t.cell.half_diagonal_up().unwrap_or(f32::MAX))),
+            None if layout.write.lod.rlod => {
+                return Err(LayoutError::Internal("a top LOD node has no R-LOD plane").into())
+            }
+            None => None,
+        };
+        given.insert(
+            t.node,
+            (top::finish_top_lod(t, layout.voxel_threshold, area), rlod),
+        );
     }
     let skel = top::skeleton(&tree, &outs, &given, bounds)?;
     let external: BTreeMap<NodeId, (u32, u32)> = skel
@@ -173,7 +216,10 @@ pub fn build(
             proxy_base: proxy_count,
             detach_root: false,
             first_level: 0,
-            lod: LodSource::Given(&lod_of),
+            lod: LodSource::Given {
+                data: &lod_of,
+                kinds: layout.write.lod,
+            },
             external: &external,
         },
     )?;
@@ -319,8 +365,7 @@ fn metadata(
 ) -> Metadata {
     schema.six_sample_voxels = counts.voxels_six > 0;
     let mut params = kd.params();
-    params.push(("lod_sampling".into(), LOD_SAMPLING.into()));
-    params.push(("voxel_threshold".into(), layout.voxel_threshold.to_string()));
+    params.extend(lod_params(layout.write.lod, layout.voxel_threshold));
     params.push((
         "triangles_per_proxy".into(),
         layout.triangles_per_proxy.to_string(),

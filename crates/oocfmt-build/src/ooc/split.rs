@@ -4,11 +4,14 @@
 //! centroid is marked as not primary); a triangle is placed by the bounds of its part inside
 //! the cell, so thin diagonal triangles are not copied where they do not reach.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use super::soup::{SoupReader, SoupWriter};
 use super::OocError;
+use crate::import::InputTriangle;
 use crate::kdtree::clip_triangle;
+use crate::lod::rlod::{PlaneFit, PlaneMoments};
 use crate::mesh::Bounds;
 use crate::progress::Progress;
 
@@ -42,7 +45,21 @@ pub struct TopTree {
     /// Cells that could not be split further (every triangle reaches both halves, or the depth
     /// limit) and stay over the budget.
     pub oversized: Vec<usize>,
+    /// With [`RlodMoments`]: the R-LOD planes of the inner nodes that are LOD nodes, by node,
+    /// fitted to the moments gathered in their split pass. Their deviation is still 0: the
+    /// chunks below measure it.
+    pub planes: BTreeMap<usize, PlaneFit>,
 }
+
+/// Asks the split to gather R-LOD moments: the pass that splits a LOD node (scene depth `d`
+/// with `d % h == h - 1`) reads every triangle of its cell once anyway.
+pub struct RlodMoments<'a> {
+    pub treelet_height: u8,
+    pub colour: TriangleColour<'a>,
+}
+
+/// A triangle's linear RGB, as the in-core fit sees it.
+pub type TriangleColour<'a> = &'a dyn Fn(&InputTriangle) -> [f64; 3];
 
 /// Deepest median split: leaves the in-core builds room under the format's 128 levels.
 pub const MAX_SPLIT_DEPTH: u32 = 48;
@@ -56,6 +73,7 @@ pub fn split(
     cell: Bounds,
     budget: u64,
     dir: &Path,
+    rlods: Option<&RlodMoments>,
     progress: &mut dyn Progress,
 ) -> Result<TopTree, OocError> {
     let mut top = TopTree::default();
@@ -69,6 +87,12 @@ pub fn split(
         let (lo, hi) = (cell.min[axis], cell.max[axis]);
         let mid = (lo + (hi - lo) * 0.5).clamp(lo, hi);
         let splittable = n > budget && depth < MAX_SPLIT_DEPTH && lo < mid && mid < hi;
+        let mut moments = rlods
+            .filter(|r| {
+                let h = u32::from(r.treelet_height.max(1));
+                splittable && depth % h == h - 1
+            })
+            .map(|r| (PlaneMoments::new(cell), r.colour));
         let halves = if splittable {
             Some(split_file(
                 &file,
@@ -78,6 +102,7 @@ pub fn split(
                 mid,
                 dir,
                 top.nodes.len(),
+                moments.as_mut(),
             )?)
         } else {
             None
@@ -104,6 +129,9 @@ pub fn split(
                     top.nodes.push(TopNode::Chunk(usize::MAX));
                     *slot = Some(id);
                     pending.push((id, f, c, cc));
+                }
+                if let Some((m, _)) = moments {
+                    top.planes.insert(node, m.plane());
                 }
                 if let Some(n) = top.nodes.get_mut(node) {
                     *n = TopNode::Inner {
@@ -145,7 +173,8 @@ pub fn split(
 }
 
 /// One streaming pass: every record of `file` to the side(s) of `axis = mid` its clipped part
-/// reaches. Returns each side's file and count.
+/// reaches, and into `moments` when given. Returns each side's file and count.
+#[allow(clippy::too_many_arguments)]
 fn split_file(
     file: &Path,
     n: u64,
@@ -154,11 +183,15 @@ fn split_file(
     mid: f32,
     dir: &Path,
     id: usize,
+    mut moments: Option<&mut (PlaneMoments, TriangleColour)>,
 ) -> Result<[(PathBuf, u64); 2], OocError> {
     let mut left = SoupWriter::create(&dir.join(format!("n{id}-l.soup")))?;
     let mut right = SoupWriter::create(&dir.join(format!("n{id}-r.soup")))?;
     for record in SoupReader::open(file, n)? {
         let t = record?;
+        if let Some((m, colour)) = moments.as_deref_mut() {
+            m.add(t.triangle.positions, || colour(&t.triangle));
+        }
         let part = clip_triangle(t.triangle.positions, cell);
         let (pmin, pmax) = (part.min[axis], part.max[axis]);
         let in_plane = pmin == mid && pmax == mid;
@@ -214,7 +247,7 @@ mod tests {
             min: [0.0; 3],
             max: [84.25, 1.0, 0.0],
         };
-        let top = split(&path, n, cell, 10, dir.path(), &mut NoProgress)?;
+        let top = split(&path, n, cell, 10, dir.path(), None, &mut NoProgress)?;
         assert!(top.chunks.len() >= 8, "{} chunks", top.chunks.len());
         assert!(top.oversized.is_empty());
         let mut primaries = Vec::new();
@@ -260,7 +293,7 @@ mod tests {
             min: [0.0; 3],
             max: [10.0, 1.0, 0.0],
         };
-        let top = split(&path, n, cell, 4, dir.path(), &mut NoProgress)?;
+        let top = split(&path, n, cell, 4, dir.path(), None, &mut NoProgress)?;
         assert_eq!(top.chunks.len(), 1);
         assert_eq!(top.oversized, vec![0]);
         assert_eq!(top.nodes, vec![TopNode::Chunk(0)]);

@@ -122,3 +122,92 @@ fn sampling_in_pieces_matches_sampling_the_whole() {
         assert_eq!(p.colour(), [0.0, 1.0, 0.0]);
     }
 }
+
+/// The R-LOD of a LOD node above the chunks: moments streamed over the node's triangles in the
+/// split pass, deviation measured chunk by chunk and widened, gives the in-core fit's record.
+#[test]
+fn rlod_fit_in_pieces_matches_the_fit_of_the_whole() {
+    use crate::lod::rlod::{fit, Deviation, PlaneMoments};
+
+    let mut mesh = hull_with_cargo();
+    // A slanted sheet through the hull, so the plane is not axis-aligned and the deviation is
+    // not a face's.
+    let base = mesh.positions.len() as u32;
+    mesh.positions.extend([
+        [0.2, 0.1, 0.3],
+        [3.9, 0.4, 2.9],
+        [3.7, 3.8, 3.6],
+        [0.1, 3.5, 1.1],
+    ]);
+    if let Some(c) = mesh.colours.as_mut() {
+        c.extend([[200, 40, 10, 255]; 4]);
+    }
+    mesh.triangles
+        .extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+    let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
+    let cell = mesh.bounds();
+    let whole = fit(&mesh, &all, cell);
+
+    let colour = |t: u32| -> [f64; 3] {
+        let idx = mesh.triangles[t as usize];
+        let cs = mesh.colours.as_ref().unwrap_or_else(|| panic!("colours"));
+        let mut sum = [0.0; 3];
+        for v in idx {
+            for (s, c) in sum.iter_mut().zip(cs[v as usize]) {
+                *s += f64::from(c) / 255.0 / 3.0;
+            }
+        }
+        sum
+    };
+    // Streamed in another order than the in-core fit's, as a spill file would be.
+    let mut moments = PlaneMoments::new(cell);
+    for &t in all.iter().rev() {
+        let Some(c) = mesh.corners(t as usize) else {
+            continue;
+        };
+        moments.add(c, || colour(t));
+    }
+    let mut pieces = moments.plane();
+    assert_eq!(pieces.deviation, 0.0);
+    // Three chunks along x, each with the triangles reaching it (straddlers in several).
+    let (a, rest) = cell.split(0, 1.3);
+    let (b, c) = rest.split(0, 2.9);
+    for chunk in [a, b, c] {
+        let (part, _) = chunk_of(&mesh, chunk);
+        let mut d = Deviation::new(&pieces, chunk);
+        for t in 0..part.triangles.len() {
+            if let Some(corners) = part.corners(t) {
+                d.add(corners);
+            }
+        }
+        let piece = d.finish();
+        pieces.widen(&piece);
+    }
+    let close = |x: f64, y: f64| (x - y).abs() <= 1e-9 * (1.0 + x.abs());
+    for k in 0..3 {
+        assert!(
+            close(pieces.normal[k], whole.normal[k]),
+            "{pieces:?} {whole:?}"
+        );
+        assert!(
+            close(pieces.point[k], whole.point[k]),
+            "{pieces:?} {whole:?}"
+        );
+        assert!(
+            close(pieces.colour[k], whole.colour[k]),
+            "{pieces:?} {whole:?}"
+        );
+    }
+    assert!(close(pieces.area, whole.area), "{pieces:?} {whole:?}");
+    assert!(whole.deviation > 0.5, "{whole:?}");
+    assert!(
+        close(pieces.deviation, whole.deviation),
+        "{pieces:?} {whole:?}"
+    );
+    assert!(
+        close(pieces.stored_deviation, whole.stored_deviation),
+        "{pieces:?} {whole:?}"
+    );
+    let radius = cell.half_diagonal_up().unwrap_or(f32::MAX);
+    assert_eq!(pieces.record(radius), whole.record(radius));
+}

@@ -15,6 +15,7 @@ use crate::layout::triangles::LeafRef;
 use crate::layout::LayoutError;
 use crate::lod::{sample_cell, LodData};
 use crate::mesh::Bounds;
+use oocfmt::records::Rlod;
 
 /// A LOD node among the median-split nodes, with its rays.
 pub struct TopLod {
@@ -83,7 +84,7 @@ pub fn finish_top_lod(lod: &TopLod, threshold: f32, area: f64) -> LodData {
 /// references are in `leaves`) and whose frontier LOD nodes have placeholder children.
 pub struct Skeleton {
     pub tree: KdTree,
-    pub lod: BTreeMap<NodeId, LodData>,
+    pub lod: BTreeMap<NodeId, (LodData, Option<Rlod>)>,
     /// Frontier LOD nodes: (chunk, chunk-local child block, child treelet).
     pub frontier: BTreeMap<NodeId, (usize, u32, u32)>,
     /// Leaves of chunk top treelets: (chunk, reference with a chunk-local triangle block).
@@ -93,7 +94,7 @@ pub struct Skeleton {
 pub fn skeleton(
     top: &TopTree,
     chunks: &[ChunkOut],
-    top_lod: &BTreeMap<usize, LodData>,
+    top_lod: &BTreeMap<usize, (LodData, Option<Rlod>)>,
     bounds: Bounds,
 ) -> Result<Skeleton, LayoutError> {
     let mut s = Builder {
@@ -116,12 +117,12 @@ pub fn skeleton(
 
 struct Builder<'a> {
     nodes: Vec<KdNode>,
-    lod: BTreeMap<NodeId, LodData>,
+    lod: BTreeMap<NodeId, (LodData, Option<Rlod>)>,
     frontier: BTreeMap<NodeId, (usize, u32, u32)>,
     leaves: BTreeMap<NodeId, (usize, LeafRef)>,
     top: &'a TopTree,
     chunks: &'a [ChunkOut],
-    top_lod: &'a BTreeMap<usize, LodData>,
+    top_lod: &'a BTreeMap<usize, (LodData, Option<Rlod>)>,
 }
 
 impl Builder<'_> {
@@ -210,12 +211,13 @@ impl Builder<'_> {
                 child_block,
                 child_treelet,
                 lod,
+                rlod,
             } => {
                 // Placeholders only carry which children exist: the children live in the
                 // chunk's own blocks.
                 let children = present.map(|p| p.then_some(0));
                 self.inner(id, axis, split, children, &mut |b, _| b.push(placeholder()))?;
-                self.lod.insert(id, lod);
+                self.lod.insert(id, (lod, rlod));
                 self.frontier
                     .insert(id, (chunk, child_block, child_treelet));
             }
