@@ -37,7 +37,7 @@ pub struct Args {
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=8))]
     pub treelet_height: u8,
     /// LOD representations to store in the LOD nodes: voxel (Áfra 2012), rlod (planes, Yoon
-    /// et al. 2006) or both. R-LODs need the in-core build (see --mem-limit)
+    /// et al. 2006) or both, in core or out of core alike
     #[arg(long, default_value = "voxel", value_parser = parse_lod_kinds)]
     pub lod: LodKinds,
     /// Refuse the first bad triangle (NaN, out-of-range index, zero area) instead of dropping it
