@@ -87,6 +87,8 @@ def main():
     p.add_argument("--poe", default="3", help="pixels of error (Table 5 of the paper uses 3)")
     p.add_argument("--shading", default="primary,shadows,ao", help="any of primary, shadows, ao")
     p.add_argument("--keep-obj", action="store_true", help="keep the generated OBJ files")
+    p.add_argument("--render-args", default="", help="more `oocfmt render` flags for the walkthroughs, "
+                   "space-separated, e.g. '--fetch-priority normal'")
     p.add_argument("--dir", default=os.path.join(ROOT, "target", "bench-scale"))
     a = p.parse_args()
     require_binary()
@@ -126,7 +128,7 @@ def main():
         lo = [o + v for o, v in zip(origin, scene["bounds_min"])]
         hi = [o + v for o, v in zip(origin, scene["bounds_max"])]
         cams = path_cameras(lo, hi, a.frames)
-        common = ["--size", a.size, "--poe", a.poe, "--cache-mb", str(a.cache_mb)]
+        common = ["--size", a.size, "--poe", a.poe, "--cache-mb", str(a.cache_mb)] + a.render_args.split()
         with tempfile.TemporaryDirectory(dir=a.dir) as work:
             for s in wanted:
                 cold, steady, rss = walk(model, cams, work, s, common + shadings[s])

@@ -194,6 +194,8 @@ def main():
     p.add_argument("--poe", default="1")
     p.add_argument("--cache-mb", type=int, default=2048)
     p.add_argument("--fetchers", type=int, default=2)
+    p.add_argument("--render-args", default="", help="more `oocfmt render` flags for every run, "
+                   "space-separated, e.g. '--fetch-priority normal'")
     p.add_argument("--dir", default=os.path.join(ROOT, "target", "bench-walk"))
     p.add_argument("--strategies", action="store_true",
                    help="compare the cache strategies on one cold walkthrough instead")
@@ -221,7 +223,7 @@ def main():
     cams = path_cameras(lo, hi, a.frames)
     cams += [cams[-1]] * a.hold
     frames = len(cams)
-    common = ["--size", a.size, "--poe", a.poe, "--fetchers", str(a.fetchers)]
+    common = ["--size", a.size, "--poe", a.poe, "--fetchers", str(a.fetchers)] + a.render_args.split()
     if a.strategies:
         compare_strategies(a, model, cams, common, size_mb)
         return

@@ -66,6 +66,12 @@ pub struct Args {
     /// after Wald et al. 2004); neither evicts a block the current frame touched
     #[arg(long, default_value = "lru", value_parser = Eviction::NAMES)]
     pub eviction: String,
+    /// Async cache: the fetcher threads' nice value (Linux): 0 shares the CPU equally with the
+    /// render threads (blocks arrive soonest, and a cold frame slows down while they decode);
+    /// higher values give the render threads the CPU first (19: fetchers use only what they
+    /// leave)
+    #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_FETCHER_NICE, value_parser = clap::value_parser!(u8).range(0..=19))]
+    pub fetcher_nice: u8,
     /// Walkthroughs with the async cache: look-ahead prefetching (after iWalk): after each
     /// frame, predict the next cameras from the linear and angular speed of the last two,
     /// trace a coarse grid of probe rays from them against the resident blocks, and fetch the
@@ -241,6 +247,7 @@ impl Cache {
             // The value parsers allow only the names.
             fetch_order: FetchOrder::parse(&a.fetch_order).unwrap_or_default(),
             eviction: Eviction::parse(&a.eviction).unwrap_or_default(),
+            fetcher_nice: a.fetcher_nice,
             prefetch_bytes: if a.prefetch == "on" {
                 (a.prefetch_mb * 1048576.0) as u64
             } else {

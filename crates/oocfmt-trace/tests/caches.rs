@@ -400,3 +400,64 @@ fn reading_ahead_fills_a_cold_view_in_fewer_frames_and_only_into_free_room() {
     frames_to_full_detail(&scene, &tight, &cam);
     assert!(tight.stats().peak_bytes_resident as usize <= needed + needed / 4);
 }
+
+/// The nice value in a task's `stat` (field 19; the command name before it may hold spaces,
+/// so the fields are counted from its closing parenthesis).
+#[cfg(target_os = "linux")]
+fn nice_of(stat_path: &Path) -> Option<i32> {
+    let stat = std::fs::read_to_string(stat_path).ok()?;
+    let (_, rest) = stat.rsplit_once(')')?;
+    rest.split_whitespace().nth(16)?.parse().ok()
+}
+
+/// The nice values of this process's threads.
+#[cfg(target_os = "linux")]
+fn thread_nice_values() -> Vec<i32> {
+    std::fs::read_dir("/proc/self/task")
+        .unwrap()
+        .filter_map(|t| nice_of(&t.ok()?.path().join("stat")))
+        .collect()
+}
+
+/// The fetchers run at the nice value asked for, the render threads and the caller keep theirs,
+/// and the stats say what the fetchers got; nice 0 leaves them alone.
+#[cfg(target_os = "linux")]
+#[test]
+fn fetchers_run_at_the_nice_value_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = uncompressed_mandelbulb(dir.path(), 2_000);
+    let scene = Arc::new(Scene::open(&path).unwrap());
+    let own = || nice_of(Path::new("/proc/thread-self/stat"));
+    let mine = own();
+    assert!(mine.is_some());
+    let before = thread_nice_values();
+    assert!(!before.contains(&7), "{before:?}");
+    for (nice, fetchers) in [(7u8, 3usize), (0, 2)] {
+        let opts = AsyncOptions {
+            fetchers,
+            fetcher_nice: nice,
+            ..AsyncOptions::default()
+        };
+        let cache = AsyncCache::with_options(Arc::clone(&scene), 64 << 20, &opts);
+        // The fetchers lower themselves as they start.
+        let mut at = Vec::new();
+        for _ in 0..500 {
+            at = thread_nice_values();
+            if at.iter().filter(|&&n| n == 7).count() == if nice > 0 { fetchers } else { 0 } {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        let lowered = at.iter().filter(|&&n| n == 7).count();
+        assert_eq!(lowered, if nice > 0 { fetchers } else { 0 }, "{at:?}");
+        let cam = &views(&scene)[0];
+        let (_, stats) = render(&scene, &cache, cam, &POE0).unwrap();
+        assert_eq!(
+            stats.cache.fetcher_nice,
+            (nice > 0).then_some(i32::from(nice))
+        );
+        // This thread kept its priority.
+        assert_eq!(own(), mine);
+        drop(cache);
+    }
+}

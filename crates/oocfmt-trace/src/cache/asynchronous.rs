@@ -19,7 +19,7 @@
 //! frame) is dropped and asked for again later.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError, RwLock};
 use std::thread::JoinHandle;
 
@@ -49,6 +49,9 @@ pub struct AsyncOptions {
     pub read_ahead: u8,
     pub fetch_order: FetchOrder,
     pub eviction: Eviction,
+    /// The fetchers' nice value (Linux; 0 elsewhere): above 0 the render threads get the CPU
+    /// first, so decoding a burst of blocks slows a frame down less, and blocks arrive later.
+    pub fetcher_nice: u8,
     /// Decoded bytes look-ahead prefetching may load per frame ([`AsyncCache::prefetch`]); a
     /// fetcher starts a prefetch only while less than this was loaded since the last call, so
     /// a frame may go over by a block per fetcher.
@@ -62,9 +65,29 @@ impl Default for AsyncOptions {
             read_ahead: DEFAULT_READ_AHEAD,
             fetch_order: FetchOrder::Afra,
             eviction: Eviction::Lru,
+            fetcher_nice: DEFAULT_FETCHER_NICE,
             prefetch_bytes: 0,
         }
     }
+}
+
+/// The fetchers' default nice value: on 2 cores with both busy rendering, a fetcher at nice 5
+/// gets about a seventh of the CPU (scheduler weights 335 against 1024 per render thread).
+pub const DEFAULT_FETCHER_NICE: u8 = 5;
+
+/// Lowers the calling thread's priority to `nice`; false where the system refused or cannot.
+/// On Linux the nice value belongs to the thread, not the process.
+#[cfg(target_os = "linux")]
+fn lower_this_thread(nice: u8) -> bool {
+    let tid = rustix::thread::gettid();
+    rustix::process::setpriority_process(Some(tid), i32::from(nice)).is_ok()
+}
+
+/// Elsewhere `setpriority` renices the whole process: fetchers keep the render threads'
+/// priority.
+#[cfg(not(target_os = "linux"))]
+fn lower_this_thread(_nice: u8) -> bool {
+    false
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -148,6 +171,8 @@ struct Shared {
     /// [`AsyncCache::prefetch`].
     prefetch_bytes: u64,
     prefetch_spent: AtomicU64,
+    /// Fetchers whose request for the lowest priority the system refused.
+    refused: AtomicUsize,
 }
 
 /// What only the step between frames changes.
@@ -177,6 +202,7 @@ pub struct AsyncCache {
     budget: usize,
     fetch_order: FetchOrder,
     eviction: Eviction,
+    fetcher_nice: u8,
     table: RwLock<HashMap<u32, Arc<Resident>>>,
     /// The frame being rendered; blocks used by it are not evicted.
     frame: AtomicU64,
@@ -227,16 +253,26 @@ impl AsyncCache {
             read_ahead: opts.read_ahead,
             prefetch_bytes: opts.prefetch_bytes,
             prefetch_spent: AtomicU64::new(0),
+            refused: AtomicUsize::new(0),
         });
+        let nice = opts.fetcher_nice;
         let handles = (0..opts.fetchers.max(1))
             .map(|_| {
                 let s = Arc::clone(&shared);
-                std::thread::spawn(move || fetch_loop(&s))
+                std::thread::spawn(move || {
+                    // Where the system refuses, the fetcher runs at normal priority and the
+                    // stats say so.
+                    if nice > 0 && !lower_this_thread(nice) {
+                        s.refused.fetch_add(1, Relaxed);
+                    }
+                    fetch_loop(&s)
+                })
             })
             .collect();
         let cache = AsyncCache {
             shared,
             fetchers: handles,
+            fetcher_nice: opts.fetcher_nice,
             budget: budget_bytes,
             fetch_order: opts.fetch_order,
             eviction: opts.eviction,
@@ -674,6 +710,8 @@ impl BlockCache for AsyncCache {
             mode: "async",
             fetch_order: self.fetch_order.name(),
             eviction: self.eviction.name(),
+            fetcher_nice: (self.fetcher_nice > 0 && self.shared.refused.load(Relaxed) == 0)
+                .then_some(i32::from(self.fetcher_nice)),
             budget_bytes: self.budget as u64,
             bytes_resident: b.resident_bytes as u64,
             peak_bytes_resident: self.shared.peak.load(Relaxed),
