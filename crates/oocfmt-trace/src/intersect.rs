@@ -13,11 +13,11 @@ pub struct Ray {
     pub dir: [f32; 3],
     /// 1 / dir per axis; ±inf for a ±0 component.
     pub inv: [f32; 3],
-    kx: usize,
-    kz: usize,
-    sx: f32,
-    sy: f32,
-    sz: f32,
+    pub(crate) kx: usize,
+    pub(crate) kz: usize,
+    pub(crate) sx: f32,
+    pub(crate) sy: f32,
+    pub(crate) sz: f32,
 }
 
 /// A triangle hit: distance along the ray direction and barycentric weights of the three
