@@ -39,15 +39,17 @@ impl Ray {
         if dir[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
+        let inv = dir.map(|d| 1.0 / d);
         Ray {
             org,
             dir,
-            inv: dir.map(|d| 1.0 / d),
+            inv,
             kx,
             kz,
             sx: dir[kx] / dir[kz],
             sy: dir[ky] / dir[kz],
-            sz: 1.0 / dir[kz],
+            // 1 / dir[kz], the same division.
+            sz: inv[kz],
         }
     }
 

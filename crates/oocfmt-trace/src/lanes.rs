@@ -42,10 +42,10 @@ impl<const N: usize> RayLanes<N> {
             return None;
         }
         Some(RayLanes {
-            org: [0, 1, 2].map(|k| rays.map(|r| r.org[k])),
-            sx: rays.map(|r| r.sx),
-            sy: rays.map(|r| r.sy),
-            sz: rays.map(|r| r.sz),
+            org: [0, 1, 2].map(|k| std::array::from_fn(|i| rays[i].org[k])),
+            sx: std::array::from_fn(|i| rays[i].sx),
+            sy: std::array::from_fn(|i| rays[i].sy),
+            sz: std::array::from_fn(|i| rays[i].sz),
             kx: first.kx,
             kz: first.kz,
         })
@@ -86,6 +86,10 @@ impl<const N: usize> RayLanes<N> {
         };
         let [ox, oy, oz] = [&self.org[KX], &self.org[KY], &self.org[KZ]];
         let (sx, sy, sz) = (&self.sx, &self.sy, &self.sz);
+        let mut act = [0u32; N];
+        for i in 0..N {
+            act[i] = all(active >> i & 1 != 0);
+        }
         for &ti in ids {
             let Some([a, b, c]) = positions.get(usize::from(ti)) else {
                 continue;
@@ -101,15 +105,15 @@ impl<const N: usize> RayLanes<N> {
             let mut u = sub(&mul(&cx, &by), &mul(&cy, &bx));
             let mut v = sub(&mul(&ax, &cy), &mul(&ay, &cx));
             let mut w = sub(&mul(&bx, &ay), &mul(&by, &ax));
-            let mut zero = false;
+            let mut zero = [0u32; N];
             for i in 0..N {
-                zero |= (u[i] == 0.0) | (v[i] == 0.0) | (w[i] == 0.0);
+                zero[i] = all(u[i] == 0.0) | all(v[i] == 0.0) | all(w[i] == 0.0);
             }
-            if zero {
+            if any(&zero) {
                 // Rare: an edge function rounded to zero in some lane; that lane recomputes
                 // all three in f64, as the single-ray kernel does.
                 for i in 0..N {
-                    if u[i] == 0.0 || v[i] == 0.0 || w[i] == 0.0 {
+                    if zero[i] != 0 {
                         let f = |x: &[f32; N]| f64::from(x[i]);
                         let (ax, ay, bx, by, cx, cy) =
                             (f(&ax), f(&ay), f(&bx), f(&by), f(&cx), f(&cy));
@@ -120,16 +124,14 @@ impl<const N: usize> RayLanes<N> {
                 }
             }
             // Inside: no edge function of either sign against the others.
-            let mut inside = [false; N];
-            let mut any_inside = false;
+            let mut inside = [0u32; N];
             for i in 0..N {
                 let (u, v, w) = (u[i], v[i], w[i]);
-                let neg = (u < 0.0) | (v < 0.0) | (w < 0.0);
-                let pos = (u > 0.0) | (v > 0.0) | (w > 0.0);
-                inside[i] = (active >> i & 1 != 0) & !(neg & pos);
-                any_inside |= inside[i];
+                let neg = all(u < 0.0) | all(v < 0.0) | all(w < 0.0);
+                let pos = all(u > 0.0) | all(v > 0.0) | all(w > 0.0);
+                inside[i] = act[i] & !(neg & pos);
             }
-            if !any_inside {
+            if !any(&inside) {
                 continue;
             }
             let det = add(&add(&u, &v), &w);
@@ -140,25 +142,23 @@ impl<const N: usize> RayLanes<N> {
                 rcp[i] = 1.0 / det[i];
             }
             let t = mul(&t_scaled, &rcp);
-            let mut take = [false; N];
-            let mut any_take = false;
+            let mut take = [0u32; N];
             for i in 0..N {
                 let (d, ts) = (det[i], t_scaled[i]);
-                let behind = ((d > 0.0) & (ts <= 0.0)) | ((d < 0.0) & (ts >= 0.0));
-                take[i] = inside[i]
-                    & (d != 0.0)
-                    & d.is_finite()
+                let behind = (all(d > 0.0) & all(ts <= 0.0)) | (all(d < 0.0) & all(ts >= 0.0));
+                let ok = all(d != 0.0)
+                    & all(d.is_finite())
                     & !behind
-                    & t[i].is_finite()
-                    & (t[i] < t_max[i]);
-                any_take |= take[i];
+                    & all(t[i].is_finite())
+                    & all(t[i] < t_max[i]);
+                take[i] = inside[i] & ok;
             }
-            if !any_take {
+            if !any(&take) {
                 continue;
             }
             let bary = [mul(&u, &rcp), mul(&v, &rcp), mul(&w, &rcp)];
             for i in 0..N {
-                if take[i] {
+                if take[i] != 0 {
                     t_max[i] = t[i];
                     out.hit |= 1 << i;
                     out.triangle[i] = ti;
@@ -171,6 +171,19 @@ impl<const N: usize> RayLanes<N> {
         out
     }
 }
+
+/// A lane mask: all bits set for true, none for false (what a SIMD comparison gives).
+#[inline(always)]
+fn all(b: bool) -> u32 {
+    u32::from(b).wrapping_neg()
+}
+
+/// Whether some lane of `m` is set.
+#[inline(always)]
+fn any<const N: usize>(m: &[u32; N]) -> bool {
+    m.iter().fold(0, |a, &b| a | b) != 0
+}
+
 /// p − o per lane.
 #[inline(always)]
 fn from<const N: usize>(p: f32, o: &[f32; N]) -> [f32; N] {

@@ -86,9 +86,9 @@ impl<const N: usize> Lanes<N> {
                 }
             }
         }
-        let inv = [0, 1, 2].map(|k| rays.map(|r| r.inv[k]));
+        let inv = [0, 1, 2].map(|k| std::array::from_fn(|i| rays[i].inv[k]));
         Some(Lanes {
-            org: [0, 1, 2].map(|k| rays.map(|r| r.org[k])),
+            org: [0, 1, 2].map(|k| std::array::from_fn(|i| rays[i].org[k])),
             tol: [0, 1, 2].map(|k| std::array::from_fn(|i| eps[i] * inv[k][i].abs())),
             inv,
             eps,
@@ -218,7 +218,7 @@ impl Tracer<'_> {
         keys: &[u32; N],
         memo: &Memo,
     ) -> [Option<Hit>; N] {
-        let eps = rays.map(|r| self.ray_eps(&r));
+        let eps = std::array::from_fn(|i| self.ray_eps(&rays[i]));
         match (Lanes::new(rays, eps), RayLanes::new(rays)) {
             (Some(lanes), Some(kernel)) => self.walk(rays, keys, &lanes, &kernel, memo),
             _ => {

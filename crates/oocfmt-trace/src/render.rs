@@ -241,9 +241,12 @@ pub fn render(
                 let mut depth = Vec::with_capacity(n);
                 let mut endings = Endings::default();
                 let mut secondary = Secondary::default();
-                let rays: Vec<Ray> = (y0..y1)
-                    .flat_map(|y| (x0..x1).map(move |x| frame.ray(x, y)))
-                    .collect();
+                let mut rays = Vec::with_capacity(n);
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        rays.push(frame.ray(x, y));
+                    }
+                }
                 let mut hits = primary_hits(&tracer, &rays, (x1 - x0) as usize, memo);
                 for (k, (y, x)) in (y0..y1)
                     .flat_map(|y| (x0..x1).map(move |x| (y, x)))
