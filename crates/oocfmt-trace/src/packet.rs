@@ -13,7 +13,7 @@
 //! at each (the near/far order depends only on the direction's signs), and a stacked subtree
 //! is skipped for a ray only where the single-ray path pops and skips it, so the hits are the
 //! same, bit for bit, and so is the count of nodes visited. The blocks the rays wanted and did
-//! not get are logged under each ray's key ([`Memo::want_later`]), so that the caller can
+//! not get are logged under each ray's key ([`Memo::release_deferred`]), so that the caller can
 //! replay them in the single-ray order. Rays that cannot form a packet are traced alone.
 
 // Lane loops index several arrays by the same lane, which is what the compiler vectorizes.
