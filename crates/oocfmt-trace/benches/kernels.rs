@@ -1,6 +1,7 @@
 //! Tracer kernels: ray/triangle, ray/box, primary rays through the LOD traversal of a small
-//! converted Mandelbulb (one thread, a warm blocking cache, full detail and PoE 2), and the
-//! decode of its largest treelet and triangle blocks into the traversal's shapes. The format's kernels (checksums,
+//! converted Mandelbulb (one thread, a warm blocking cache, full detail and PoE 2; ray by ray
+//! and in 2 × 2 packets), and the decode of its largest treelet and triangle blocks into the
+//! traversal's shapes. The format's kernels (checksums,
 //! LZ4 and zstd block decode, record parsing, voxel samples) are in `oocfmt`'s `kernels`
 //! bench. `cargo bench -p oocfmt-trace --bench kernels` (add `-- --quick` for a short run).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -111,6 +112,10 @@ fn traversal(c: &mut Criterion, scene: &Arc<Scene>) {
         .flat_map(|y| (0..w).map(move |x| (x, y)))
         .map(|(x, y)| frame.ray(x, y))
         .collect();
+    let packets: Vec<[Ray; 4]> = (0..h / 2)
+        .flat_map(|py| (0..w / 2).map(move |px| (2 * px, 2 * py)))
+        .map(|(x, y)| [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(i, j)| frame.ray(x + i, y + j)))
+        .collect();
     let cache = BlockingCache::new(Arc::clone(scene), usize::MAX);
     let mut g = c.benchmark_group("primary rays (32x24, warm)");
     g.throughput(Throughput::Elements(rays.len() as u64));
@@ -126,6 +131,18 @@ fn traversal(c: &mut Criterion, scene: &Arc<Scene>) {
                 rays.iter()
                     .filter(|r| tracer.trace(r, &memo).is_some())
                     .count()
+            })
+        });
+        // The same rays in packets of 2 × 2 pixels, as `render` traces them.
+        g.bench_function(format!("poe {poe}, 2x2 packets"), |b| {
+            b.iter(|| {
+                let mut hits = 0;
+                for p in &packets {
+                    let out = tracer.trace_packet(p, &[0, 1, 2, 3], &memo);
+                    hits += out.iter().filter(|h| h.is_some()).count();
+                }
+                memo.release_deferred(u32::MAX);
+                hits
             })
         });
         memo.flush(&cache);

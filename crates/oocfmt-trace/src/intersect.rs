@@ -13,11 +13,11 @@ pub struct Ray {
     pub dir: [f32; 3],
     /// 1 / dir per axis; ±inf for a ±0 component.
     pub inv: [f32; 3],
-    kx: usize,
-    kz: usize,
-    sx: f32,
-    sy: f32,
-    sz: f32,
+    pub(crate) kx: usize,
+    pub(crate) kz: usize,
+    pub(crate) sx: f32,
+    pub(crate) sy: f32,
+    pub(crate) sz: f32,
 }
 
 /// A triangle hit: distance along the ray direction and barycentric weights of the three
@@ -39,15 +39,17 @@ impl Ray {
         if dir[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
+        let inv = dir.map(|d| 1.0 / d);
         Ray {
             org,
             dir,
-            inv: dir.map(|d| 1.0 / d),
+            inv,
             kx,
             kz,
             sx: dir[kx] / dir[kz],
             sy: dir[ky] / dir[kz],
-            sz: 1.0 / dir[kz],
+            // 1 / dir[kz], the same division.
+            sz: inv[kz],
         }
     }
 

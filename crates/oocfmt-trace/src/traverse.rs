@@ -86,7 +86,13 @@ pub struct Memo {
     flushed: Vec<(u32, Wish)>,
     /// Nodes the rays traced with this memo visited (inner, LOD and leaf), since the last
     /// [`Memo::take_visited`].
-    visited: Cell<u64>,
+    pub(crate) visited: Cell<u64>,
+    /// While set, [`Memo::want`] logs under this key instead of adding at once.
+    defer_key: Cell<Option<u32>>,
+    /// Deferred wants: key, block, radius, distance; in the order the rays made them.
+    deferred: RefCell<Vec<(u32, u32, f32, f32)>>,
+    /// How many of `deferred` (sorted by key) have been released.
+    released: Cell<usize>,
 }
 
 impl Memo {
@@ -98,6 +104,9 @@ impl Memo {
             wanted: RefCell::default(),
             flushed: Vec::new(),
             visited: Cell::new(0),
+            defer_key: Cell::new(None),
+            deferred: RefCell::default(),
+            released: Cell::new(0),
         }
     }
 
@@ -110,6 +119,9 @@ impl Memo {
             }
         }
         self.wanted.get_mut().clear();
+        self.deferred.get_mut().clear();
+        self.released.set(0);
+        self.defer_key.set(None);
     }
 
     /// Nodes visited since the last call, and a fresh count.
@@ -119,6 +131,9 @@ impl Memo {
 
     /// Hands the blocks wanted since the last flush to the cache as requests.
     pub fn flush(&mut self, cache: &dyn BlockCache) {
+        self.release_deferred(u32::MAX);
+        self.deferred.get_mut().clear();
+        self.released.set(0);
         let wanted = self.wanted.get_mut();
         if wanted.is_empty() {
             return;
@@ -129,12 +144,56 @@ impl Memo {
     }
 
     /// One ray wanted block `id` and did not get it: see [`Wish::add`] for the priority.
-    fn want(&self, id: u32, radius: f32, t: f32) {
+    pub(crate) fn want(&self, id: u32, radius: f32, t: f32) {
+        match self.defer_key.get() {
+            Some(key) => self.want_later(key, id, radius, t),
+            None => self.want_now(id, radius, t),
+        }
+    }
+
+    fn want_now(&self, id: u32, radius: f32, t: f32) {
         self.wanted
             .borrow_mut()
             .entry(id)
             .or_default()
             .add(radius, t);
+    }
+
+    /// [`Memo::want`] for the ray of `key`, logged until [`Memo::release_deferred`] reaches
+    /// the key. Rays traced together in a packet make their wants interleaved; replaying them
+    /// ray by ray, in the order the rays would have been traced alone, keeps the sums of the
+    /// priorities bit for bit those of the single-ray path.
+    pub(crate) fn want_later(&self, key: u32, id: u32, radius: f32, t: f32) {
+        self.deferred.borrow_mut().push((key, id, radius, t));
+    }
+
+    /// Logs the wants of the rays traced from now on under `key` (None: adds them at once).
+    pub fn defer_wants(&self, key: Option<u32>) {
+        self.defer_key.set(key);
+    }
+
+    /// Adds the logged wants of every key up to `key`, key by key in increasing order, each
+    /// key's in the order they were made. Keys must be released in increasing order; a want
+    /// logged under a key already released is added at the next release.
+    pub fn release_deferred(&self, key: u32) {
+        let mut log = self.deferred.borrow_mut();
+        let mut at = self.released.get();
+        if at == 0 && !log.is_empty() {
+            // Stable: each key keeps the order of its wants.
+            log.sort_by_key(|e| e.0);
+        }
+        while let Some(&(k, id, radius, t)) = log.get(at) {
+            if k > key {
+                break;
+            }
+            self.want_now(id, radius, t);
+            at += 1;
+        }
+        if at == log.len() {
+            log.clear();
+            at = 0;
+        }
+        self.released.set(at);
     }
 
     fn slot(&self, id: u32, load: impl FnOnce() -> Slot) -> Option<&Slot> {
@@ -145,7 +204,7 @@ impl Memo {
         }))
     }
 
-    fn treelets(&self, cache: &dyn BlockCache, id: u32) -> Option<&TreeletData> {
+    pub(crate) fn treelets(&self, cache: &dyn BlockCache, id: u32) -> Option<&TreeletData> {
         let slot = self.slot(id, || {
             cache.treelets(id).map_or(Slot::Missing, Slot::Treelets)
         });
@@ -155,7 +214,7 @@ impl Memo {
         }
     }
 
-    fn triangles(&self, cache: &dyn BlockCache, id: u32) -> Option<&Arc<TriangleData>> {
+    pub(crate) fn triangles(&self, cache: &dyn BlockCache, id: u32) -> Option<&Arc<TriangleData>> {
         let slot = self.slot(id, || {
             cache.triangles(id).map_or(Slot::Missing, Slot::Triangles)
         });
@@ -190,7 +249,7 @@ impl LastVoxel<'_> {
 
 /// What a LOD node showing `shown` gives a ray crossing its cell in [t0, t1], entering through
 /// `axis`, and where; None when a plane is missed.
-fn shown(
+pub(crate) fn shown(
     shown: &Shown,
     ray: &Ray,
     t0: f32,
@@ -249,7 +308,7 @@ type Lasts<'m> = ArrayVec<LastVoxel<'m>, { MAX_TREE_DEPTH as usize }>;
 
 /// Makes `lv` the last voxel of the path (dropping the outermost when a corrupt tree is deeper
 /// than any path can be) and returns the count to store in entries below it.
-fn push_last<'m>(lasts: &mut Lasts<'m>, lv: LastVoxel<'m>) -> u8 {
+pub(crate) fn push_last<T, const CAP: usize>(lasts: &mut ArrayVec<T, CAP>, lv: T) -> u8 {
     if lasts.is_full() {
         lasts.remove(0);
     }
@@ -258,7 +317,8 @@ fn push_last<'m>(lasts: &mut Lasts<'m>, lv: LastVoxel<'m>) -> u8 {
 }
 
 /// The nearest surface found so far, borrowed from the memo until the ray is done.
-enum Best<'m> {
+#[derive(Clone, Copy)]
+pub(crate) enum Best<'m> {
     None,
     Triangle {
         data: &'m Arc<TriangleData>,
@@ -276,15 +336,15 @@ enum Best<'m> {
 }
 
 pub struct Tracer<'a> {
-    cache: &'a dyn BlockCache,
-    root: Option<(u32, u32)>,
-    lo: [f32; 3],
-    hi: [f32; 3],
-    proxies: &'a [oocfmt::records::ProxyRecord],
+    pub(crate) cache: &'a dyn BlockCache,
+    pub(crate) root: Option<(u32, u32)>,
+    pub(crate) lo: [f32; 3],
+    pub(crate) hi: [f32; 3],
+    pub(crate) proxies: &'a [oocfmt::records::ProxyRecord],
     /// Positional tolerance of split decisions: some ulps of the scene's coordinates.
     eps: f32,
     /// The LOD constant C (see the module comment); 0 never stops at a voxel.
-    lod_c: f32,
+    pub(crate) lod_c: f32,
 }
 
 /// One side of a split: left or right child, interval, entry axis.
@@ -364,9 +424,7 @@ impl<'a> Tracer<'a> {
     /// ray towards a light at distance `t_max` is occluded when this returns a hit.
     pub fn trace_to(&self, ray: &Ray, t_max: f32, memo: &Memo) -> Option<Hit> {
         let mut stack = ArrayVec::<Entry<'_>, { MAX_TREE_DEPTH as usize }>::new();
-        let eps = self
-            .eps
-            .max(ray.org.iter().fold(0f32, |a, &c| a.max(c.abs())) * 4e-6);
+        let eps = self.ray_eps(ray);
         let t_max = if t_max.is_nan() { f32::INFINITY } else { t_max };
         let (t0, t1, axis) = ray_box(ray, self.lo, self.hi, eps, 0.0, t_max)?;
         let (root_block, root_treelet) = self.root?;
@@ -443,10 +501,7 @@ impl<'a> Tracer<'a> {
                         };
                         let before = ts + tol >= t0 && first != NONE;
                         let after = ts - tol <= t1 && second != NONE;
-                        // max(ts, t0) then min(.., t1) as single instructions: ts is not NaN
-                        // when either side is taken (a NaN fails both tests above).
-                        let m = if t0 > ts { t0 } else { ts };
-                        let mid = if t1 < m { t1 } else { m };
+                        let mid = clamp_mid(ts, t0, t1);
                         match (before, after) {
                             (true, true) => {
                                 let _ = stack.try_push(Entry {
@@ -575,7 +630,21 @@ impl<'a> Tracer<'a> {
             }
         }
         memo.visited.set(memo.visited.get() + visited);
-        let (surface, radius) = match best {
+        best.hit(best_t)
+    }
+
+    /// The positional tolerance of a ray's split decisions: the scene's, or some ulps of the
+    /// origin's coordinates when they are larger.
+    pub(crate) fn ray_eps(&self, ray: &Ray) -> f32 {
+        self.eps
+            .max(ray.org.iter().fold(0f32, |a, &c| a.max(c.abs())) * 4e-6)
+    }
+}
+
+impl Best<'_> {
+    /// The hit this nearest surface at `t` makes; None for none.
+    pub(crate) fn hit(self, t: f32) -> Option<Hit> {
+        let (surface, radius) = match self {
             Best::None => return None,
             Best::Triangle {
                 data,
@@ -597,11 +666,21 @@ impl<'a> Tracer<'a> {
                 radius,
             } => (Surface::Plane { normal, colour }, radius),
         };
-        Some(Hit {
-            t: best_t,
-            surface,
-            radius,
-        })
+        Some(Hit { t, surface, radius })
+    }
+}
+
+/// The crossing distance `ts` of a split plane clamped to the ray's interval [t0, t1]:
+/// max(ts, t0) then min(.., t1), written as comparisons so that the single-ray and the packet
+/// traversal round ±0 alike (and compile to single `maxss`/`minss`). ts is not NaN when a
+/// side is taken: a NaN fails both side tests.
+#[inline(always)]
+pub(crate) fn clamp_mid(ts: f32, t0: f32, t1: f32) -> f32 {
+    let m = if t0 > ts { t0 } else { ts };
+    if t1 < m {
+        t1
+    } else {
+        m
     }
 }
 
@@ -633,7 +712,7 @@ fn split_sides(
     let left_before = d > 0.0;
     let ts = (split - o) * inv;
     let tol = eps * inv.abs();
-    let mid = ts.max(t0).min(t1);
+    let mid = clamp_mid(ts, t0, t1);
     let before = (ts + tol >= t0).then_some((left_before, t0, mid, entry));
     let after_axis = if ts >= t0 { axis } else { entry };
     let after = (ts - tol <= t1).then_some((!left_before, mid, t1, after_axis));
@@ -644,7 +723,7 @@ fn split_sides(
 }
 
 /// The sample of the face a ray entered the voxel's cell through (−x, +x, −y, +y, −z, +z).
-fn voxel_sample(v: &Voxel, axis: u8, ray: &Ray) -> Sample {
+pub(crate) fn voxel_sample(v: &Voxel, axis: u8, ray: &Ray) -> Sample {
     match v {
         Voxel::Single(s) => *s,
         Voxel::Six(s) => {
@@ -660,7 +739,7 @@ fn voxel_sample(v: &Voxel, axis: u8, ray: &Ray) -> Sample {
 }
 
 /// The proxy sample whose direction is nearest the ray's.
-fn proxy_sample(samples: &[Sample; 18], ray: &Ray) -> Sample {
+pub(crate) fn proxy_sample(samples: &[Sample; 18], ray: &Ray) -> Sample {
     let mut best = (f32::NEG_INFINITY, samples[0]);
     for (d, s) in PROXY_DIRECTIONS.iter().zip(samples) {
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();

@@ -1,0 +1,502 @@
+//! Coherent rays traced together: a packet of `N` rays whose direction components have the same
+//! signs (and none is ±0 or so tiny that its reciprocal overflows) and whose watertight kernels
+//! share an axis permutation walks the kd-tree once for all of them (Wald 2004, §3: kd-tree
+//! packet traversal). Every ray keeps its own interval, entry axis and nearest hit; a mask says
+//! which rays are on the path being walked. At an inner node each ray makes the decision it
+//! makes alone ([`Tracer::trace`]), and the packet goes where any ray goes: near child first,
+//! the far child stacked for the rays that want it. Leaves test each triangle against all the
+//! packet's rays at once ([`RayLanes`]). LOD stops, missing blocks, proxies and R-LOD planes end
+//! a ray on the current path exactly as alone. The per-ray loops have fixed lengths and no
+//! early exits, so the compiler makes them SIMD.
+//!
+//! Every ray visits the same nodes in the same order as alone, with the same nearest distance
+//! at each (the near/far order depends only on the direction's signs), and a stacked subtree
+//! is skipped for a ray only where the single-ray path pops and skips it, so the hits are the
+//! same, bit for bit, and so is the count of nodes visited. The blocks the rays wanted and did
+//! not get are logged under each ray's key ([`Memo::release_deferred`]), so that the caller can
+//! replay them in the single-ray order. Rays that cannot form a packet are traced alone.
+
+// Lane loops index several arrays by the same lane, which is what the compiler vectorizes.
+#![allow(clippy::needless_range_loop)]
+
+use arrayvec::ArrayVec;
+
+use oocfmt::records::MAX_TREE_DEPTH;
+
+use crate::blocks::{DNode, TreeletData, NONE};
+use crate::intersect::{ray_box, Ray};
+use crate::lanes::RayLanes;
+use crate::traverse::{clamp_mid, proxy_sample, push_last, shown, Best, Hit, Memo, Tracer};
+
+/// Which rays of a packet (bit i: ray i).
+type Mask = u32;
+
+/// A subtree waiting on the packet's stack: each ray's interval and entry axis, which rays
+/// visit it, and for which of them it is a far child stacked by their own decision (the rays
+/// that went there alone, without visiting the near side, do not test it against their nearest
+/// hit when it is popped: alone they never stacked it).
+#[derive(Clone, Copy)]
+struct Entry<'m, const N: usize> {
+    data: &'m TreeletData,
+    node: u32,
+    lods: u8,
+    active: Mask,
+    check: Mask,
+    t0: [f32; N],
+    t1: [f32; N],
+    axis: [u32; N],
+}
+
+/// A LOD node on the packet's path, with each ray's interval in its cell and entry axis.
+#[derive(Clone, Copy)]
+struct LastVoxels<'m, const N: usize> {
+    data: &'m TreeletData,
+    lod: u32,
+    radius: f32,
+    t: [f32; N],
+    t1: [f32; N],
+    axis: [u32; N],
+}
+
+/// The per-ray state of the split decisions (structure of arrays) and the direction signs the
+/// rays share.
+struct Lanes<const N: usize> {
+    org: [[f32; N]; 3],
+    inv: [[f32; N]; 3],
+    /// `eps · |inv|` per axis, as [`Tracer::trace`] computes it.
+    tol: [[f32; N]; 3],
+    eps: [f32; N],
+    left_first: [bool; 3],
+}
+
+impl<const N: usize> Lanes<N> {
+    /// None when the rays cannot walk together: a direction component is ±0 or has no finite
+    /// reciprocal (the ray is parallel to that axis's planes), the signs differ, or there are
+    /// more rays than bits in a [`Mask`].
+    fn new(rays: &[Ray; N], eps: [f32; N]) -> Option<Lanes<N>> {
+        let first = rays.first()?;
+        if N > Mask::BITS as usize {
+            return None;
+        }
+        let left_first = first.dir.map(|d| d > 0.0);
+        for r in rays {
+            for k in 0..3 {
+                if r.dir[k] == 0.0 || !r.inv[k].is_finite() || (r.dir[k] > 0.0) != left_first[k] {
+                    return None;
+                }
+            }
+        }
+        let inv = [0, 1, 2].map(|k| std::array::from_fn(|i| rays[i].inv[k]));
+        Some(Lanes {
+            org: [0, 1, 2].map(|k| std::array::from_fn(|i| rays[i].org[k])),
+            tol: [0, 1, 2].map(|k| std::array::from_fn(|i| eps[i] * inv[k][i].abs())),
+            inv,
+            eps,
+            left_first,
+        })
+    }
+}
+
+/// The decisions of every ray at a split plane: which rays visit the side they meet first and
+/// which the second, the crossing clamped to each ray's interval, and the axis a ray enters
+/// the second side through.
+struct Split<const N: usize> {
+    before: Mask,
+    after: Mask,
+    mid: [f32; N],
+    axis: [u32; N],
+}
+
+/// Where the packet is: the node, each ray's interval in its cell and entry axis, and which
+/// rays are on this path.
+#[derive(Clone, Copy)]
+struct At<'m, const N: usize> {
+    data: &'m TreeletData,
+    node: u32,
+    active: Mask,
+    t0: [f32; N],
+    t1: [f32; N],
+    axis: [u32; N],
+}
+
+impl<'m, const N: usize> At<'m, N> {
+    /// Each ray's decision at a split plane of axis `a` at `split`, between the child met
+    /// first and the second one ([`NONE`]: no child), for the rays of `active`.
+    #[inline(always)]
+    fn split(
+        &self,
+        lanes: &Lanes<N>,
+        active: Mask,
+        a: u8,
+        split: f32,
+        first: u32,
+        second: u32,
+    ) -> Split<N> {
+        let k = usize::from(a.min(2));
+        let (org, inv, tol) = (&lanes.org[k], &lanes.inv[k], &lanes.tol[k]);
+        let (t0, t1) = (&self.t0, &self.t1);
+        let mut s = Split {
+            before: 0,
+            after: 0,
+            mid: [0.0; N],
+            axis: [0; N],
+        };
+        let a = u32::from(a);
+        for i in 0..N {
+            let ts = (split - org[i]) * inv[i];
+            s.before |= Mask::from(ts + tol[i] >= t0[i]) << i;
+            s.after |= Mask::from(ts - tol[i] <= t1[i]) << i;
+            s.mid[i] = clamp_mid(ts, t0[i], t1[i]);
+            s.axis[i] = if ts >= t0[i] { a } else { self.axis[i] };
+        }
+        let has = |c: u32| if c != NONE { active } else { 0 };
+        s.before &= has(first);
+        s.after &= has(second);
+        s
+    }
+
+    /// Goes on after a split into `data`, as each ray alone does: both sides, the near one
+    /// now and the far one returned to be stacked; one side, that one now. None: no ray goes
+    /// on.
+    #[inline(always)]
+    fn step(
+        &mut self,
+        s: &Split<N>,
+        data: &'m TreeletData,
+        first: u32,
+        second: u32,
+    ) -> Option<Option<At<'m, N>>> {
+        self.data = data;
+        match (s.before != 0, s.after != 0) {
+            (true, far) => {
+                let far = far.then_some(At {
+                    data,
+                    node: second,
+                    active: s.after,
+                    t0: s.mid,
+                    t1: self.t1,
+                    axis: s.axis,
+                });
+                self.node = first;
+                self.active = s.before;
+                self.t1 = s.mid;
+                Some(far)
+            }
+            (false, true) => {
+                self.node = second;
+                self.active = s.after;
+                self.t0 = s.mid;
+                self.axis = s.axis;
+                Some(None)
+            }
+            (false, false) => None,
+        }
+    }
+}
+
+/// How many rays `m` (of a packet of `N`) holds: by nibbles from a table, a fixed number of
+/// steps, as the baseline x86-64 target has no `popcnt` instruction.
+#[inline(always)]
+fn rays_in<const N: usize>(m: Mask) -> u64 {
+    // Bits set in each 4-bit value, one per nibble.
+    const NIBBLES: u64 = 0x4332_3221_3221_2110;
+    (0..N.div_ceil(4)).fold(0, |n, k| n + (NIBBLES >> (4 * (m >> (4 * k) & 15)) & 15))
+}
+
+/// The rays of `m`, in order.
+fn rays_of(m: Mask) -> impl Iterator<Item = usize> {
+    (0..Mask::BITS as usize).filter(move |&i| m >> i & 1 != 0)
+}
+
+impl Tracer<'_> {
+    /// [`Tracer::trace`] of each of `rays`, walking the tree once for all of them where they
+    /// can form a packet (see the module comment), ray by ray otherwise. The blocks a ray
+    /// wanted are logged under its key in `keys` (see [`Memo::release_deferred`]).
+    pub fn trace_packet<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        keys: &[u32; N],
+        memo: &Memo,
+    ) -> [Option<Hit>; N] {
+        let eps = std::array::from_fn(|i| self.ray_eps(&rays[i]));
+        match (Lanes::new(rays, eps), RayLanes::new(rays)) {
+            (Some(lanes), Some(kernel)) => self.walk(rays, keys, &lanes, &kernel, memo),
+            _ => {
+                let mut out = [const { None }; N];
+                for ((o, ray), &key) in out.iter_mut().zip(rays).zip(keys) {
+                    memo.defer_wants(Some(key));
+                    *o = self.trace(ray, memo);
+                }
+                memo.defer_wants(None);
+                out
+            }
+        }
+    }
+
+    fn walk<'m, const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        keys: &[u32; N],
+        lanes: &Lanes<N>,
+        kernel: &RayLanes<N>,
+        memo: &'m Memo,
+    ) -> [Option<Hit>; N] {
+        let mut best = [Best::<'m>::None; N];
+        let mut best_t = [f32::INFINITY; N];
+        let (mut t0, mut t1, mut axis) = ([0f32; N], [0f32; N], [3u32; N]);
+        let mut live: Mask = 0;
+        for (i, ray) in rays.iter().enumerate() {
+            let eps = lanes.eps[i];
+            if let Some((a, b, ax)) = ray_box(ray, self.lo, self.hi, eps, 0.0, f32::INFINITY) {
+                (t0[i], t1[i], axis[i]) = (a, b, ax.map_or(3, |a| a as u32));
+                live |= 1 << i;
+            }
+        }
+        if live == 0 {
+            return [const { None }; N];
+        }
+        let Some((root_block, root_treelet)) = self.root else {
+            return [const { None }; N];
+        };
+        let Some(root_data) = memo.treelets(self.cache, root_block) else {
+            for i in rays_of(live) {
+                memo.want_later(keys[i], root_block, f32::INFINITY, t0[i]);
+            }
+            return [const { None }; N];
+        };
+        let Some(&root) = root_data.roots.get(root_treelet as usize) else {
+            return [const { None }; N];
+        };
+        let mut stack = ArrayVec::<Entry<'m, N>, { MAX_TREE_DEPTH as usize }>::new();
+        stack.push(Entry {
+            data: root_data,
+            node: root,
+            lods: 0,
+            active: live,
+            check: live,
+            t0,
+            t1,
+            axis,
+        });
+        let mut lasts = ArrayVec::<LastVoxels<'m, N>, { MAX_TREE_DEPTH as usize }>::new();
+        let mut visited = 0u64;
+        // A ray that found `found` on the current path keeps it when it is nearer.
+        let offer = |best: &mut [Best<'m>; N],
+                     best_t: &mut [f32; N],
+                     i: usize,
+                     found: Option<(f32, Best<'m>)>| {
+            if let (Some((t, s)), Some(bt), Some(b)) = (found, best_t.get_mut(i), best.get_mut(i)) {
+                if t < *bt {
+                    *bt = t;
+                    *b = s;
+                }
+            }
+        };
+        while let Some(e) = stack.pop() {
+            let mut beyond: Mask = 0;
+            for i in 0..N {
+                beyond |= Mask::from(e.t0[i] > best_t[i] + lanes.eps[i]) << i;
+            }
+            let active = e.active & !(e.check & beyond);
+            if active == 0 {
+                continue;
+            }
+            let mut lods = e.lods;
+            let mut at = At {
+                data: e.data,
+                node: e.node,
+                active,
+                t0: e.t0,
+                t1: e.t1,
+                axis: e.axis,
+            };
+            lasts.truncate(usize::from(lods));
+            while let Some(&n) = at.data.nodes.get(at.node as usize) {
+                visited += rays_in::<N>(at.active);
+                let (s, first, second, next) = match n {
+                    DNode::Inner {
+                        axis: a,
+                        split,
+                        left,
+                        right,
+                    } => {
+                        let (first, second) = if lanes.left_first[usize::from(a.min(2))] {
+                            (left, right)
+                        } else {
+                            (right, left)
+                        };
+                        let s = at.split(lanes, at.active, a, split, first, second);
+                        (s, first, second, at.data)
+                    }
+                    DNode::Lod {
+                        axis: a,
+                        split,
+                        lod,
+                    } => {
+                        let data = at.data;
+                        let Some(l) = data.lods.get(lod as usize) else {
+                            break;
+                        };
+                        lods = push_last(
+                            &mut lasts,
+                            LastVoxels {
+                                data,
+                                lod,
+                                radius: l.radius,
+                                t: at.t0,
+                                t1: at.t1,
+                                axis: at.axis,
+                            },
+                        );
+                        let mut stop: Mask = 0;
+                        if self.lod_c > 0.0 {
+                            for i in 0..N {
+                                stop |= Mask::from(l.radius <= at.t0[i] * self.lod_c) << i;
+                            }
+                        }
+                        stop &= at.active;
+                        let go = at.active & !stop;
+                        let child = if go != 0 {
+                            memo.treelets(self.cache, l.child_block)
+                        } else {
+                            None
+                        };
+                        // The rays that end here: those that stop, and, without the child
+                        // block, all of them. Without the node's look they just end.
+                        let look = data.looks.get(lod as usize);
+                        if let (true, Some(look)) = (stop != 0 || child.is_none(), look) {
+                            let proxy = look.proxy.and_then(|p| self.proxies.get(p as usize));
+                            let ends = if child.is_some() { stop } else { at.active };
+                            for (i, ray) in rays.iter().enumerate() {
+                                if ends >> i & 1 == 0 {
+                                    continue;
+                                }
+                                let (t0, t1, axis) = (at.t0[i], at.t1[i], at.axis[i] as u8);
+                                let own = || shown(&look.shown, ray, t0, t1, axis, l.radius);
+                                let found = if stop >> i & 1 != 0 {
+                                    own()
+                                } else {
+                                    memo.want_later(keys[i], l.child_block, l.radius, t0);
+                                    // A proxy that sees nothing in the ray's direction skips
+                                    // the subtree.
+                                    match proxy {
+                                        Some(p) => Some(proxy_sample(&p.samples, ray))
+                                            .filter(|s| !s.is_empty())
+                                            .map(|s| (t0, Best::Proxy(s, l.radius))),
+                                        None => own(),
+                                    }
+                                };
+                                offer(&mut best, &mut best_t, i, found);
+                            }
+                        }
+                        let Some(child) = child else {
+                            break;
+                        };
+                        let root = |t: u32| {
+                            child
+                                .roots
+                                .get(t as usize)
+                                .copied()
+                                .filter(|&r| t != NONE && r != NONE)
+                                .unwrap_or(NONE)
+                        };
+                        let (left, right) = (root(l.left), root(l.right));
+                        let (first, second) = if lanes.left_first[usize::from(a.min(2))] {
+                            (left, right)
+                        } else {
+                            (right, left)
+                        };
+                        let s = at.split(lanes, go, a, split, first, second);
+                        (s, first, second, child)
+                    }
+                    DNode::Leaf {
+                        first,
+                        count,
+                        block,
+                    } => {
+                        match memo.triangles(self.cache, block) {
+                            Some(td) => {
+                                let first = usize::from(first);
+                                let list = td.list.get(first..first + usize::from(count));
+                                let list = list.unwrap_or(&[]);
+                                let h = kernel.nearest(at.active, list, &td.positions, &mut best_t);
+                                for (i, b) in best.iter_mut().enumerate() {
+                                    if h.hit >> i & 1 != 0 {
+                                        *b = Best::Triangle {
+                                            data: td,
+                                            triangle: u32::from(h.triangle[i]),
+                                            bary: [h.bary[0][i], h.bary[1][i], h.bary[2][i]],
+                                        };
+                                    }
+                                }
+                            }
+                            None => {
+                                for (i, ray) in rays.iter().enumerate() {
+                                    if at.active >> i & 1 == 0 {
+                                        continue;
+                                    }
+                                    match lasts.last() {
+                                        Some(lv) => {
+                                            let (t, t1) = (lv.t[i], lv.t1[i]);
+                                            memo.want_later(keys[i], block, lv.radius, t);
+                                            let found = lv
+                                                .data
+                                                .looks
+                                                .get(lv.lod as usize)
+                                                .and_then(|look| {
+                                                    let axis = lv.axis[i] as u8;
+                                                    shown(&look.shown, ray, t, t1, axis, lv.radius)
+                                                });
+                                            offer(&mut best, &mut best_t, i, found);
+                                        }
+                                        None => {
+                                            let t = at.t0[i];
+                                            memo.want_later(keys[i], block, f32::INFINITY, t);
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                        break;
+                    }
+                };
+                match at.step(&s, next, first, second) {
+                    None => break,
+                    Some(None) => {}
+                    Some(Some(far)) => {
+                        let _ = stack.try_push(Entry {
+                            data: far.data,
+                            node: far.node,
+                            lods,
+                            active: far.active,
+                            check: s.before & s.after,
+                            t0: far.t0,
+                            t1: far.t1,
+                            axis: far.axis,
+                        });
+                    }
+                }
+            }
+        }
+        memo.visited.set(memo.visited.get() + visited);
+        let mut out = [const { None }; N];
+        for ((o, b), t) in out.iter_mut().zip(best).zip(best_t) {
+            *o = b.hit(t);
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn rays_in_counts_the_bits_of_a_mask() {
+        for m in [0u32, 1, 0b1011, 0xff, 0xf0f0, 0x8000_0001, u32::MAX] {
+            assert_eq!(super::rays_in::<32>(m), u64::from(m.count_ones()), "{m:#x}");
+            assert_eq!(
+                super::rays_in::<4>(m & 15),
+                u64::from((m & 15).count_ones())
+            );
+        }
+    }
+}
