@@ -71,9 +71,11 @@ impl Default for AsyncOptions {
     }
 }
 
-/// The fetchers' default nice value: on 2 cores with both busy rendering, a fetcher at nice 5
-/// gets about a seventh of the CPU (scheduler weights 335 against 1024 per render thread).
-pub const DEFAULT_FETCHER_NICE: u8 = 5;
+/// The fetchers' default nice value. On 2 cores busy rendering, a fetcher at nice 10 gets about
+/// a tenth of a core (scheduler weight 110 against 1024 per render thread) and all the time the
+/// render threads leave between frames; at 19 it got so little that a 10M-triangle walkthrough
+/// never converged (README, "Walkthroughs").
+pub const DEFAULT_FETCHER_NICE: u8 = 10;
 
 /// Lowers the calling thread's priority to `nice`; false where the system refused or cannot.
 /// On Linux the nice value belongs to the thread, not the process.
