@@ -14,6 +14,37 @@ fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
+/// `curve --lod voxel,rlod --poe 0,2` on `model` with the blocking cache: its rows.
+fn curve_rows(d: &Path, model: &str) -> Vec<serde_json::Value> {
+    let js = format!("{model}.curve.json");
+    run_ok(
+        &[
+            "curve",
+            model,
+            "--lod",
+            "voxel,rlod",
+            "--poe",
+            "0,2",
+            "--cache",
+            "blocking",
+            "--size",
+            "160x120",
+            "--repeat",
+            "1",
+            "--json",
+            &js,
+        ],
+        d,
+    );
+    json(&d.join(&js))["rows"].as_array().unwrap().clone()
+}
+
+fn find_row<'a>(rows: &'a [serde_json::Value], lod: &str, poe: f64) -> &'a serde_json::Value {
+    rows.iter()
+        .find(|r| r["lod"] == lod && r["poe"].as_f64() == Some(poe))
+        .unwrap_or_else(|| panic!("no row {lod} {poe}"))
+}
+
 fn convert(d: &Path, lod: &str, out: &str) {
     run_ok(
         &["convert", "mb.obj", "-o", out, "--lod", lod, "--quiet"],
@@ -165,33 +196,8 @@ fn rlods_build_out_of_core() {
     let mut rmse = Vec::new();
     for name in ["in-core", "chunked"] {
         let out = format!("{name}.oocf");
-        let js = format!("{name}.json");
-        run_ok(
-            &[
-                "curve",
-                &out,
-                "--lod",
-                "voxel,rlod",
-                "--poe",
-                "0,2",
-                "--cache",
-                "blocking",
-                "--size",
-                "160x120",
-                "--repeat",
-                "1",
-                "--json",
-                &js,
-            ],
-            d,
-        );
-        let c = json(&d.join(&js));
-        let rows = c["rows"].as_array().unwrap();
-        let row = |lod: &str, poe: f64| {
-            rows.iter()
-                .find(|r| r["lod"] == lod && r["poe"].as_f64() == Some(poe))
-                .unwrap_or_else(|| panic!("no row {lod} {poe}"))
-        };
+        let rows = curve_rows(d, &out);
+        let row = |lod: &str, poe: f64| find_row(&rows, lod, poe);
         for lod in ["voxel", "rlod"] {
             assert_eq!(row(lod, 0.0)["error"]["rmse"], 0.0, "{name} {lod}");
         }
@@ -251,32 +257,8 @@ fn rlod_error_at_poe_2_is_bounded_next_to_voxels() {
     let d = dir.path();
     gen(d, "mandelbulb", "60000", "mb.obj");
     convert(d, "both", "mb.oocf");
-    run_ok(
-        &[
-            "curve",
-            "mb.oocf",
-            "--lod",
-            "voxel,rlod",
-            "--poe",
-            "0,2",
-            "--cache",
-            "blocking",
-            "--size",
-            "160x120",
-            "--repeat",
-            "1",
-            "--json",
-            "curve.json",
-        ],
-        d,
-    );
-    let c = json(&d.join("curve.json"));
-    let rows = c["rows"].as_array().unwrap();
-    let row = |lod: &str, poe: f64| {
-        rows.iter()
-            .find(|r| r["lod"] == lod && r["poe"].as_f64() == Some(poe))
-            .unwrap_or_else(|| panic!("no row {lod} {poe}"))
-    };
+    let rows = curve_rows(d, "mb.oocf");
+    let row = |lod: &str, poe: f64| find_row(&rows, lod, poe);
     for lod in ["voxel", "rlod"] {
         assert_eq!(row(lod, 0.0)["error"]["rmse"], 0.0, "{lod}");
     }

@@ -12,10 +12,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use oocfmt::{BlockKind, Codec, WriteOptions};
-use oocfmt_build::convert::{convert, ConvertOptions};
-use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
 use oocfmt_build::layout::LayoutOptions;
-use oocfmt_build::progress::NoProgress;
 use oocfmt_trace::cache::asynchronous::AsyncOptions;
 use oocfmt_trace::cache::prefetch::LookAhead;
 use oocfmt_trace::cache::{Eviction, FetchOrder};
@@ -30,28 +27,16 @@ const H: u32 = 48;
 /// A Mandelbulb container with uncompressed blocks (what the mmap cache wants) of the smallest
 /// size (many blocks).
 fn uncompressed_mandelbulb(dir: &Path, triangles: u64) -> PathBuf {
-    let obj = dir.join("mb.obj");
-    let opts = MandelbulbOptions {
-        triangles,
-        ..MandelbulbOptions::default()
+    let layout = LayoutOptions {
+        write: WriteOptions {
+            codec: Codec::None,
+            ..WriteOptions::default()
+        }
+        .with_block_size(4096)
+        .unwrap(),
+        ..LayoutOptions::default()
     };
-    mandelbulb::write_obj(&obj, &opts, &mut |_, _| {}).unwrap();
-    let out = dir.join("mb-raw.oocf");
-    let opts = ConvertOptions {
-        mem_limit: 1 << 30,
-        layout: LayoutOptions {
-            write: WriteOptions {
-                codec: Codec::None,
-                ..WriteOptions::default()
-            }
-            .with_block_size(4096)
-            .unwrap(),
-            ..LayoutOptions::default()
-        },
-        ..ConvertOptions::default()
-    };
-    convert(&[obj], &out, &opts, &mut NoProgress).unwrap();
-    out
+    common::mandelbulb_with(dir, triangles, layout)
 }
 
 fn views(scene: &Scene) -> Vec<Camera> {

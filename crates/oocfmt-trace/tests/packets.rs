@@ -16,11 +16,8 @@ use std::sync::{Arc, Mutex};
 
 use oocfmt::records::LodKinds;
 use oocfmt::WriteOptions;
-use oocfmt_build::convert::{convert, ConvertOptions};
-use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
 use oocfmt_build::gen::rng::Rng;
 use oocfmt_build::layout::LayoutOptions;
-use oocfmt_build::progress::NoProgress;
 use oocfmt_trace::blocks::{DNode, LodKind, TreeletData, TriangleData};
 use oocfmt_trace::cache::{CacheStats, Wish};
 use oocfmt_trace::intersect::Ray;
@@ -136,28 +133,16 @@ fn same<const N: usize>(
 }
 
 fn mandelbulb_with(dir: &Path, triangles: u64, lod: LodKinds) -> PathBuf {
-    let obj = dir.join("mb.obj");
-    let opts = MandelbulbOptions {
-        triangles,
-        ..MandelbulbOptions::default()
-    };
-    mandelbulb::write_obj(&obj, &opts, &mut |_, _| {}).unwrap();
-    let out = dir.join("mb.oocf");
-    let opts = ConvertOptions {
-        mem_limit: 1 << 30,
-        layout: LayoutOptions {
-            write: WriteOptions {
-                lod,
-                ..WriteOptions::default()
-            },
-            // A proxy for every LOD node: a cold cache ends rays on them.
-            triangles_per_proxy: 0,
-            ..LayoutOptions::default()
+    let layout = LayoutOptions {
+        write: WriteOptions {
+            lod,
+            ..WriteOptions::default()
         },
-        ..ConvertOptions::default()
+        // A proxy for every LOD node: a cold cache ends rays on them.
+        triangles_per_proxy: 0,
+        ..LayoutOptions::default()
     };
-    convert(&[obj], &out, &opts, &mut NoProgress).unwrap();
-    out
+    common::mandelbulb_with(dir, triangles, layout)
 }
 
 /// Cameras: the default framing, straight down the z axis (the middle row and column have ±0

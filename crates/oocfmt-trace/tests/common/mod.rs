@@ -8,20 +8,31 @@ use oocfmt::BlockKind;
 use oocfmt_build::convert::{convert, ConvertOptions};
 use oocfmt_build::gen::cad::{self, CadOptions};
 use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
+use oocfmt_build::layout::LayoutOptions;
 use oocfmt_build::progress::NoProgress;
 use oocfmt_trace::intersect::Ray;
 use oocfmt_trace::Scene;
 use rayon::prelude::*;
 
 pub fn convert_obj(obj: &Path, out: &Path) {
+    convert_obj_with(obj, out, LayoutOptions::default());
+}
+
+fn convert_obj_with(obj: &Path, out: &Path, layout: LayoutOptions) {
     let opts = ConvertOptions {
         mem_limit: 1 << 30,
+        layout,
         ..ConvertOptions::default()
     };
     convert(&[obj.to_path_buf()], out, &opts, &mut NoProgress).unwrap();
 }
 
 pub fn mandelbulb(dir: &Path, triangles: u64) -> PathBuf {
+    mandelbulb_with(dir, triangles, LayoutOptions::default())
+}
+
+/// A Mandelbulb converted with `layout`.
+pub fn mandelbulb_with(dir: &Path, triangles: u64, layout: LayoutOptions) -> PathBuf {
     let obj = dir.join("mb.obj");
     let opts = MandelbulbOptions {
         triangles,
@@ -29,7 +40,7 @@ pub fn mandelbulb(dir: &Path, triangles: u64) -> PathBuf {
     };
     mandelbulb::write_obj(&obj, &opts, &mut |_, _| {}).unwrap();
     let out = dir.join("mb.oocf");
-    convert_obj(&obj, &out);
+    convert_obj_with(&obj, &out, layout);
     out
 }
 
