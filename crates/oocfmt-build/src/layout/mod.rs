@@ -6,21 +6,6 @@
 //! treelet blocks by level, then triangle blocks, then proxy blocks.
 
 pub(crate) mod plan;
-
-/// The build parameters that say how the LOD data was made.
-pub(crate) fn lod_params(kinds: LodKinds, voxel_threshold: f32) -> Vec<(String, String)> {
-    let mut params = vec![
-        ("lod_sampling".into(), LOD_SAMPLING.into()),
-        ("voxel_threshold".into(), voxel_threshold.to_string()),
-    ];
-    // Recorded only off the default, so voxel-only files stay as they were.
-    if kinds != LodKinds::VOXEL {
-        params.push(("lod_kinds".into(), kinds.name().into()));
-        params.push(("rlod_fit".into(), RLOD_FIT.into()));
-    }
-    params
-}
-
 #[cfg(test)]
 pub(crate) mod tests;
 pub(crate) mod treelets;
@@ -366,4 +351,18 @@ fn metadata(
             sources: opts.sources.clone(),
         },
     })
+}
+
+/// The build parameters that say how the LOD data was made.
+pub(crate) fn lod_params(kinds: LodKinds, voxel_threshold: f32) -> Vec<(String, String)> {
+    let mut params = vec![
+        ("lod_sampling".into(), LOD_SAMPLING.into()),
+        ("voxel_threshold".into(), voxel_threshold.to_string()),
+    ];
+    // Recorded only off the default, so voxel-only files stay as they were.
+    if kinds != LodKinds::VOXEL {
+        params.push(("lod_kinds".into(), kinds.name().into()));
+        params.push(("rlod_fit".into(), RLOD_FIT.into()));
+    }
+    params
 }

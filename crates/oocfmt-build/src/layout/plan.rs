@@ -378,9 +378,16 @@ fn file_order_lod_nodes(tree: &KdTree, root: NodeId, info: &[NodeInfo], max: usi
     out
 }
 
-/// Records every node's cell and role; returns the LOD nodes in arena order. A node at depth
-/// `d` in the scene (its root 0; `offset` is the depth of this tree's root) is a LOD node when
-/// it is inner and `d % H == H - 1`.
+/// Whether an inner node at scene depth `depth` (the root 0) is a LOD node: the last level of
+/// each treelet of height `height`, `depth % H == H - 1` (spec §6).
+pub(crate) fn is_lod_depth(depth: u32, height: u8) -> bool {
+    let h = u32::from(height.max(1));
+    depth % h == h - 1
+}
+
+/// Records every node's cell and role; returns the LOD nodes in arena order. An inner node at
+/// scene depth `d` (`offset` is the depth of this tree's root) is a LOD node when
+/// [`is_lod_depth`] says so.
 fn classify(
     tree: &KdTree,
     root: NodeId,
@@ -388,7 +395,6 @@ fn classify(
     offset: u32,
     info: &mut [NodeInfo],
 ) -> Vec<NodeId> {
-    let h = u32::from(height.max(1));
     let mut stack = vec![(root, offset, tree.bounds())];
     while let Some((id, depth, cell)) = stack.pop() {
         let role = match tree.node(id) {
@@ -403,7 +409,7 @@ fn classify(
                         stack.push((c, depth + 1, cc));
                     }
                 }
-                if depth % h == h - 1 {
+                if is_lod_depth(depth, height) {
                     Role::Lod
                 } else {
                     Role::Basic

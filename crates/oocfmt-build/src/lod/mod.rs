@@ -359,13 +359,20 @@ fn unoccluded_mean(mesh: &Mesh, tris: &[u32]) -> Sample {
 /// The mean of a triangle's vertex colours, when the mesh has them.
 fn vertex_colour(mesh: &Mesh, idx: &[u32; 3]) -> Option<[f64; 3]> {
     let cs = mesh.colours.as_ref()?;
+    Some(mean_vertex_colour(
+        idx.iter().filter_map(|&v| cs.get(v as usize).copied()),
+    ))
+}
+
+/// The linear RGB of a triangle from its vertices' colours: their mean (a third of each).
+pub(crate) fn mean_vertex_colour(colours: impl IntoIterator<Item = [u8; 4]>) -> [f64; 3] {
     let mut sum = [0.0f64; 3];
-    for c in idx.iter().filter_map(|&v| cs.get(v as usize)) {
+    for c in colours {
         for a in 0..3 {
             sum[a] += f64::from(c[a]) / 255.0 / 3.0;
         }
     }
-    Some(sum)
+    sum
 }
 
 /// The triangle's material's diffuse colour, else white.

@@ -21,7 +21,7 @@ use crate::layout::triangles::{
 };
 use crate::layout::{LayoutError, LayoutOptions};
 use crate::lod::rlod::{Deviation, PlaneFit};
-use crate::lod::{shade, triangle_area, LodData, Shade};
+use crate::lod::{mean_vertex_colour, shade, triangle_area, LodData, Shade};
 use crate::mesh::{Bounds, Mesh};
 use crate::raycast::{clip_to_box, Ray, Tracer};
 use std::collections::BTreeMap;
@@ -45,13 +45,8 @@ impl SceneFacts {
     /// colour, else white.
     pub fn colour(&self, t: &InputTriangle) -> [f64; 3] {
         if self.schema.colours {
-            let mut sum = [0.0f64; 3];
-            for c in t.colours.unwrap_or([[255; 4]; 3]) {
-                for a in 0..3 {
-                    sum[a] += f64::from(c[a]) / 255.0 / 3.0;
-                }
-            }
-            return sum;
+            // The mesh sink gives a vertex without a colour white.
+            return mean_vertex_colour(t.colours.unwrap_or([[255; 4]; 3]));
         }
         let index = self
             .material_index

@@ -121,7 +121,7 @@ pub fn build(
         treelet_height: layout.treelet_height,
         colour: &colour,
     });
-    let tree = split::split(
+    let mut tree = split::split(
         &soup.path,
         soup.count,
         bounds,
@@ -130,7 +130,7 @@ pub fn build(
         rlods.as_ref(),
         progress,
     )?;
-    let mut planes: BTreeMap<usize, PlaneFit> = tree.planes.clone();
+    let mut planes: BTreeMap<usize, PlaneFit> = std::mem::take(&mut tree.planes);
 
     let mut top_lod =
         top::top_lod_nodes(&tree, bounds, layout.treelet_height, layout.voxel_threshold);

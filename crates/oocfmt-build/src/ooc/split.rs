@@ -11,6 +11,7 @@ use super::soup::{SoupReader, SoupWriter};
 use super::OocError;
 use crate::import::InputTriangle;
 use crate::kdtree::clip_triangle;
+use crate::layout::plan::is_lod_depth;
 use crate::lod::rlod::{PlaneFit, PlaneMoments};
 use crate::mesh::Bounds;
 use crate::progress::Progress;
@@ -51,8 +52,8 @@ pub struct TopTree {
     pub planes: BTreeMap<usize, PlaneFit>,
 }
 
-/// Asks the split to gather R-LOD moments: the pass that splits a LOD node (scene depth `d`
-/// with `d % h == h - 1`) reads every triangle of its cell once anyway.
+/// Asks the split to gather R-LOD moments: the pass that splits a LOD node
+/// ([`is_lod_depth`]) reads every triangle of its cell once anyway.
 pub struct RlodMoments<'a> {
     pub treelet_height: u8,
     pub colour: TriangleColour<'a>,
@@ -88,10 +89,7 @@ pub fn split(
         let mid = (lo + (hi - lo) * 0.5).clamp(lo, hi);
         let splittable = n > budget && depth < MAX_SPLIT_DEPTH && lo < mid && mid < hi;
         let mut moments = rlods
-            .filter(|r| {
-                let h = u32::from(r.treelet_height.max(1));
-                splittable && depth % h == h - 1
-            })
+            .filter(|r| splittable && is_lod_depth(depth, r.treelet_height))
             .map(|r| (PlaneMoments::new(cell), r.colour));
         let halves = if splittable {
             Some(split_file(

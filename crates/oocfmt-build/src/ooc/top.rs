@@ -11,6 +11,7 @@ use std::collections::BTreeMap;
 use super::chunk::{ChunkOut, PendingRay, UpperNode};
 use super::split::{TopNode, TopTree};
 use crate::kdtree::{KdNode, KdTree, NodeId};
+use crate::layout::plan::is_lod_depth;
 use crate::layout::triangles::LeafRef;
 use crate::layout::LayoutError;
 use crate::lod::{sample_cell, LodData};
@@ -24,10 +25,9 @@ pub struct TopLod {
     pub rays: Vec<PendingRay>,
 }
 
-/// Finds the median-split nodes that are LOD nodes (scene depth `d` with `d % h == h - 1`) and
-/// records the rays that will sample them.
+/// Finds the median-split nodes that are LOD nodes ([`is_lod_depth`]) and records the rays
+/// that will sample them.
 pub fn top_lod_nodes(top: &TopTree, bounds: Bounds, height: u8, threshold: f32) -> Vec<TopLod> {
-    let h = u32::from(height.max(1));
     let mut out = Vec::new();
     let mut stack = vec![(0usize, bounds, 0u32)];
     while let Some((id, cell, depth)) = stack.pop() {
@@ -39,7 +39,7 @@ pub fn top_lod_nodes(top: &TopTree, bounds: Bounds, height: u8, threshold: f32) 
         else {
             continue;
         };
-        if depth % h == h - 1 {
+        if is_lod_depth(depth, height) {
             out.push(TopLod {
                 node: id,
                 cell,

@@ -49,8 +49,9 @@ pub struct AsyncOptions {
     pub read_ahead: u8,
     pub fetch_order: FetchOrder,
     pub eviction: Eviction,
-    /// The fetchers' nice value (Linux; 0 elsewhere): above 0 the render threads get the CPU
-    /// first, so decoding a burst of blocks slows a frame down less, and blocks arrive later.
+    /// The fetchers' nice value (Linux only; elsewhere they keep the render threads' priority):
+    /// above 0 the render threads get the CPU first, so decoding a burst of blocks slows a frame
+    /// down less, and blocks arrive later.
     pub fetcher_nice: u8,
     /// Decoded bytes look-ahead prefetching may load per frame ([`AsyncCache::prefetch`]); a
     /// fetcher starts a prefetch only while less than this was loaded since the last call, so
@@ -173,7 +174,7 @@ struct Shared {
     /// [`AsyncCache::prefetch`].
     prefetch_bytes: u64,
     prefetch_spent: AtomicU64,
-    /// Fetchers whose request for the lowest priority the system refused.
+    /// Fetchers whose lower priority the system refused.
     refused: AtomicUsize,
 }
 
