@@ -147,21 +147,25 @@ pub fn convert(
             path: output.display().to_string(),
             source,
         })?;
-    let mut sink =
-        SoupSink::create(&spill.path().join("import.soup"), opts.strict)?.with_origin(origin);
+    let chunk_triangles = opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE;
+    let mut sink = SoupSink::create(
+        &spill.path().join("import.soup"),
+        opts.strict,
+        Some(chunk_triangles),
+    )?
+    .with_origin(origin);
     progress.phase("import", Some(inputs.len() as u64));
     for (i, path) in inputs.iter().enumerate() {
         import_one(path, &mut sink, opts)?;
         progress.advance(i as u64 + 1);
     }
     progress.finish_phase();
-    let soup = sink.finish()?;
+    let mut soup = sink.finish()?;
     phases.done("import");
     let mut import_report = soup.report.clone();
     if let Some(w) = precision_warning(&import_report, &soup.bounds) {
         import_report.warnings.push(w);
     }
-    let chunk_triangles = opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE;
     let mut layout = opts.layout.clone();
     layout.sources = inputs.iter().map(|p| p.display().to_string()).collect();
     layout.origin = origin;
@@ -180,13 +184,15 @@ pub fn convert(
         let container = build_blocks(&mesh, &tree, &layout)?;
         progress.finish_phase();
         phases.done("lod+layout");
-        drop(tree);
-        drop(mesh);
+        // Freeing the tree's millions of leaf lists takes a while: beside the writing.
+        let freed = std::thread::spawn(move || drop((tree, mesh)));
 
         progress.phase("write", Some(container.blocks.len() as u64));
         let written = write_blocks(output, &container, layout.write, &mut |n| {
             progress.advance(n)
-        })?;
+        });
+        drop(freed.join());
+        let written = written?;
         progress.finish_phase();
         phases.done("write");
         (written, None)

@@ -17,13 +17,11 @@ const MAX_MATERIALS: usize = 1 << 16;
 /// The grey given to triangles without a material when others have one.
 const DEFAULT_MATERIAL: [f32; 3] = [0.8, 0.8, 0.8];
 
-/// A vertex under construction: attributes the input gave, and a fallback normal for inputs
-/// where only some triangles carry normals.
+/// A vertex under construction: the attributes the input gave.
 #[derive(Clone, Copy)]
 struct Vert {
     position: [f32; 3],
     normal: Option<[f32; 3]>,
-    fallback_normal: [f32; 3],
     colour: Option<[u8; 4]>,
 }
 
@@ -250,7 +248,11 @@ impl MeshStore {
         })
     }
 
-    fn into_mesh(self, table: Vec<Material>) -> Result<Mesh, ImportError> {
+    pub(crate) fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    pub(crate) fn into_mesh(self, table: Vec<Material>) -> Result<Mesh, ImportError> {
         let part = self.part.unwrap_or_default();
         let any_normals = part.normals || self.verts.iter().any(|v| v.normal.is_some());
         let any_colours = part.colours || self.verts.iter().any(|v| v.colour.is_some());
@@ -260,12 +262,23 @@ impl MeshStore {
             self.triangles,
         );
         if any_normals {
-            mesh.normals = Some(
-                self.verts
-                    .iter()
-                    .map(|v| v.normal.unwrap_or(v.fallback_normal))
-                    .collect(),
-            );
+            // A vertex the input gave no normal takes the geometric normal of the first
+            // triangle that used it (computed only now: most scenes have no normals at all).
+            let mut normals: Vec<Option<[f32; 3]>> = self.verts.iter().map(|v| v.normal).collect();
+            for tri in &mesh.triangles {
+                let corners = tri.map(|v| normals.get(v as usize).copied().flatten());
+                if corners.iter().all(Option::is_some) {
+                    continue;
+                }
+                let p = tri.map(|v| mesh.positions.get(v as usize).copied().unwrap_or_default());
+                let n = geometric_normal(&p);
+                for (v, c) in tri.iter().zip(corners) {
+                    if let (None, Some(slot)) = (c, normals.get_mut(*v as usize)) {
+                        *slot = Some(n);
+                    }
+                }
+            }
+            mesh.normals = Some(normals.into_iter().map(Option::unwrap_or_default).collect());
         }
         if any_colours {
             mesh.colours = Some(
@@ -343,7 +356,6 @@ fn geometric_normal(p: &[[f32; 3]; 3]) -> [f32; 3] {
 
 impl Store for MeshStore {
     fn store(&mut self, t: InputTriangle, _at: &Location) -> Result<(), ImportError> {
-        let fallback_normal = geometric_normal(&t.positions);
         let mut tri = [0u32; 3];
         for (k, slot) in tri.iter_mut().enumerate() {
             *slot = self.vertex(Vert {
@@ -352,7 +364,6 @@ impl Store for MeshStore {
                     .normals
                     .map(|n| n[k])
                     .filter(|n| n.iter().all(|c| c.is_finite())),
-                fallback_normal,
                 colour: t.colours.map(|c| c[k]),
             });
         }
@@ -368,6 +379,31 @@ mod tests {
 
     fn tri(p: [[f32; 3]; 3]) -> InputTriangle {
         InputTriangle::new(p)
+    }
+
+    #[test]
+    fn vertices_without_normals_take_their_first_triangles_normal() -> Result<(), ImportError> {
+        let at = Location::line("t.obj", 1);
+        let mut s = MeshSink::new(false);
+        // Corner 0 is met first by a triangle facing +z, then by one facing −z.
+        s.push(tri([[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), &at)?;
+        s.push(tri([[0.0; 3], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]), &at)?;
+        let mut lit = tri([[5.0, 0.0, 0.0], [6.0, 0.0, 0.0], [5.0, 0.0, 1.0]]);
+        lit.normals = Some([[1.0, 0.0, 0.0], [f32::NAN, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        s.push(lit, &at)?;
+        let (mesh, _) = s.finish()?;
+        let normals = mesh.normals.clone().unwrap_or_default();
+        let normal_at = |p: [f32; 3]| {
+            let v = mesh.positions.iter().position(|q| *q == p);
+            v.and_then(|v| normals.get(v).copied())
+        };
+        assert_eq!(normal_at([0.0; 3]), Some([0.0, 0.0, 1.0]));
+        assert_eq!(normal_at([0.0, -1.0, 0.0]), Some([0.0, 0.0, -1.0]));
+        assert_eq!(normal_at([5.0, 0.0, 0.0]), Some([1.0, 0.0, 0.0]));
+        // The corner whose normal was not finite: the geometric normal of its triangle.
+        assert_eq!(normal_at([6.0, 0.0, 0.0]), Some([0.0, -1.0, 0.0]));
+        assert_eq!(normal_at([5.0, 0.0, 1.0]), Some([0.0, 1.0, 0.0]));
+        Ok(())
     }
 
     #[test]

@@ -22,7 +22,7 @@ use crate::kdtree::{KdError, KdTree};
 use crate::lod::{DEFAULT_VOXEL_THRESHOLD, LOD_SAMPLING, RLOD_FIT};
 use crate::mesh::{Mesh, MeshError};
 use plan::{Role, TreePlan};
-use triangles::{TriangleCounts, VertexTable};
+use triangles::{LeafRef, TriangleCounts, VertexTable};
 
 /// Blocks compressed at once before they are appended: bounds the memory held by compressed
 /// blocks waiting for their turn.
@@ -197,26 +197,31 @@ pub fn build_blocks(
     };
     let attrs = schema.triangle_attributes();
 
-    let tree_plan = plan::plan_tree(
-        mesh,
-        tree,
-        opts.treelet_height,
-        opts.voxel_threshold,
-        opts.write.lod,
-        block_size,
-        opts.max_proxies(mesh.triangles.len()),
-    )?;
-    let vertices = VertexTable::new(mesh);
-    let tri_plan = triangles::plan_triangles(mesh, tree, &vertices, attrs, block_size)?;
-
+    // The triangle blocks do not depend on the LOD data: their serial planning runs beside
+    // the treelet plan's serial passes, and the sampling keeps every core busy after both.
+    let (tree_plan, triangle_side) = rayon::join(
+        || {
+            plan::plan_tree(
+                mesh,
+                tree,
+                opts.treelet_height,
+                opts.voxel_threshold,
+                opts.write.lod,
+                block_size,
+                opts.max_proxies(mesh.triangles.len()),
+            )
+        },
+        || triangle_blocks(mesh, tree, attrs, block_size),
+    );
+    let tree_plan = tree_plan?;
+    let (leaves, triangle_raw): (_, Vec<(RawBlock, TriangleCounts)>) = triangle_side?;
     let treelet_blocks =
         u32::try_from(tree_plan.blocks.len()).map_err(|_| LayoutError::TooMany("blocks"))?;
     let treelet_raw: Vec<RawBlock> = tree_plan
         .blocks
         .par_iter()
         .map(|b| {
-            let raw =
-                treelets::encode_treelets(b, tree, &tree_plan, &tri_plan.leaves, treelet_blocks)?;
+            let raw = treelets::encode_treelets(b, tree, &tree_plan, &leaves, treelet_blocks)?;
             let item_count =
                 u32::try_from(b.treelets.len()).map_err(|_| LayoutError::TooMany("treelets"))?;
             Ok(RawBlock {
@@ -227,7 +232,28 @@ pub fn build_blocks(
             })
         })
         .collect::<Result<_, LayoutError>>()?;
-    let triangle_raw: Vec<(RawBlock, TriangleCounts)> = tri_plan
+    let proxy_raw = proxy_blocks(&tree_plan, block_size)?;
+
+    let metadata = metadata(mesh, tree, opts, &tree_plan, &triangle_raw, schema)?;
+    let mut blocks = treelet_raw;
+    blocks.extend(triangle_raw.into_iter().map(|(b, _)| b));
+    blocks.extend(proxy_raw);
+    u32::try_from(blocks.len()).map_err(|_| LayoutError::TooMany("blocks"))?;
+    Ok(Container { blocks, metadata })
+}
+
+/// The triangle blocks, encoded, with what each holds, and where every leaf's list entries
+/// went (by node id).
+#[allow(clippy::type_complexity)]
+fn triangle_blocks(
+    mesh: &Mesh,
+    tree: &KdTree,
+    attrs: u16,
+    block_size: usize,
+) -> Result<(Vec<Option<LeafRef>>, Vec<(RawBlock, TriangleCounts)>), LayoutError> {
+    let vertices = VertexTable::new(mesh);
+    let plan = triangles::plan_triangles(mesh, tree, &vertices, attrs, block_size)?;
+    let blocks = plan
         .blocks
         .par_iter()
         .map(|b| {
@@ -245,14 +271,7 @@ pub fn build_blocks(
             ))
         })
         .collect::<Result<_, LayoutError>>()?;
-    let proxy_raw = proxy_blocks(&tree_plan, block_size)?;
-
-    let metadata = metadata(mesh, tree, opts, &tree_plan, &triangle_raw, schema)?;
-    let mut blocks = treelet_raw;
-    blocks.extend(triangle_raw.into_iter().map(|(b, _)| b));
-    blocks.extend(proxy_raw);
-    u32::try_from(blocks.len()).map_err(|_| LayoutError::TooMany("blocks"))?;
-    Ok(Container { blocks, metadata })
+    Ok((plan.leaves, blocks))
 }
 
 /// Proxy records in proxy-id order (the order LOD nodes appear in the file), as many per block

@@ -218,19 +218,27 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
     let Some(root) = tree.root() else {
         return Ok(plan);
     };
-    let lod_nodes = classify(
-        tree,
-        root,
-        spec.treelet_height,
-        spec.depth_offset,
-        &mut plan.info,
+    // The subtree totals the sampling needs take a serial pass over the tree: beside the
+    // serial classification.
+    let info = &mut plan.info;
+    let (height, offset, max_proxies) = (spec.treelet_height, spec.depth_offset, spec.max_proxies);
+    let sampled = match &spec.lod {
+        LodSource::Sample { mesh, .. } => Some(*mesh),
+        LodSource::Given { .. } => None,
+    };
+    let ((lod_nodes, proxied), totals) = rayon::join(
+        || {
+            let lod_nodes = classify(tree, root, height, offset, info);
+            let mut proxied = vec![false; tree.nodes().len()];
+            for id in file_order_lod_nodes(tree, root, info, max_proxies) {
+                if let Some(p) = proxied.get_mut(id.index()) {
+                    *p = true;
+                }
+            }
+            (lod_nodes, proxied)
+        },
+        || sampled.map(|mesh| crate::lod::triangle_totals(mesh, tree)),
     );
-    let mut proxied = vec![false; tree.nodes().len()];
-    for id in file_order_lod_nodes(tree, root, &plan.info, spec.max_proxies) {
-        if let Some(p) = proxied.get_mut(id.index()) {
-            *p = true;
-        }
-    }
     let wants = |id: NodeId| proxied.get(id.index()).copied().unwrap_or(false);
     plan.lod = match &spec.lod {
         LodSource::Sample {
@@ -242,7 +250,10 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
             if kinds.rlod {
                 plan.rlods = crate::lod::rlods(mesh, tree, &lod_nodes);
             }
-            crate::lod::compute_with(mesh, tree, &lod_nodes, *threshold, &wants)
+            let totals = totals.ok_or(LayoutError::Internal("no subtree totals"))?;
+            let info = &plan.info;
+            let cell = |id: NodeId| info.get(id.index()).map_or(Bounds::EMPTY, |i| i.cell);
+            crate::lod::compute_in(mesh, tree, &lod_nodes, &cell, &totals, *threshold, &wants)
         }
         LodSource::Given { data, kinds } => {
             plan.kinds = *kinds;
@@ -258,7 +269,6 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
             lod
         }
     };
-
     let root_treelet = make_treelet(tree, &mut plan, root);
     let mut units = if spec.detach_root {
         plan.detached = Some(root_treelet);
@@ -306,11 +316,14 @@ fn expand(
     let lods: Vec<NodeId> = plan
         .treelets
         .get(t)
-        .map(|tl| tl.nodes.clone())
-        .unwrap_or_default()
-        .into_iter()
-        .filter(|&n| plan.info(n).role == Role::Lod)
-        .collect();
+        .map(|tl| {
+            tl.nodes
+                .iter()
+                .copied()
+                .filter(|&n| plan.info(n).role == Role::Lod)
+                .collect()
+        })
+        .unwrap_or_default();
     let mut units = Vec::new();
     for n in lods {
         if wants(n) {
@@ -528,12 +541,7 @@ fn pack_level(
             p.child_treelet = first;
         }
         for &t in &unit.treelets {
-            let members = plan
-                .treelets
-                .get(t)
-                .map(|tl| tl.nodes.clone())
-                .unwrap_or_default();
-            for m in members {
+            for m in plan.treelets.get(t).map_or(&[][..], |tl| &tl.nodes[..]) {
                 if let Some(i) = plan.info.get_mut(m.index()) {
                     i.block = block;
                 }

@@ -14,6 +14,8 @@ pub mod rlod;
 mod sampling;
 mod totals;
 
+pub(crate) use totals::Totals;
+
 use oocfmt::records::{ProxyRecord, Rlod, Sample, Voxel};
 use rayon::prelude::*;
 
@@ -102,12 +104,6 @@ pub fn compute_with(
     proxied: &(dyn Fn(NodeId) -> bool + Sync),
 ) -> Vec<LodData> {
     let cells = cells_of(tree, nodes);
-    // Every LOD level sums the areas of (nearly) every triangle once more.
-    let areas: Vec<f64> = (0..mesh.triangles.len())
-        .into_par_iter()
-        .map(|t| triangle_area(mesh, t))
-        .collect();
-    let corners = triangle_corners(mesh);
     let cell = |id: NodeId| {
         cells
             .binary_search_by_key(&id, |&(n, _)| n)
@@ -115,7 +111,32 @@ pub fn compute_with(
             .and_then(|k| cells.get(k))
             .map_or(Bounds::EMPTY, |&(_, c)| c)
     };
-    let totals = totals::totals(tree, &areas);
+    let totals = triangle_totals(mesh, tree);
+    compute_in(mesh, tree, nodes, &cell, &totals, voxel_threshold, proxied)
+}
+
+/// The distinct triangles and their area under every node of `tree`, for [`compute_in`].
+pub(crate) fn triangle_totals(mesh: &Mesh, tree: &KdTree) -> Totals {
+    // Every LOD level sums the areas of (nearly) every triangle once more.
+    let areas: Vec<f64> = (0..mesh.triangles.len())
+        .into_par_iter()
+        .map(|t| triangle_area(mesh, t))
+        .collect();
+    totals::totals(tree, &areas)
+}
+
+/// [`compute_with`] with each node's cell and the subtree totals given, for a caller that has
+/// them already (the layout planner knows every cell).
+pub(crate) fn compute_in(
+    mesh: &Mesh,
+    tree: &KdTree,
+    nodes: &[NodeId],
+    cell: &(dyn Fn(NodeId) -> Bounds + Sync),
+    totals: &Totals,
+    voxel_threshold: f32,
+    proxied: &(dyn Fn(NodeId) -> bool + Sync),
+) -> Vec<LodData> {
+    let corners = triangle_corners(mesh);
     nodes
         .par_iter()
         .map_init(

@@ -7,7 +7,7 @@ use super::halton;
 use crate::kdtree::NodeId;
 use crate::mesh::{Bounds, Mesh};
 use crate::raycast::{
-    clip_to_box, cross, dot, first_hit_of, normalise, sub, Hit, Prepared, Ray, Tracer,
+    clip_to_box, cross, dot, first_hit_of, normalise, sub, Hit, Prepared, Ray, Tracer, PACKET_MAX,
 };
 
 /// Rays per voxel face: one per `TRIANGLES_PER_FACE_RAY` subtree triangles, clamped to
@@ -202,6 +202,29 @@ impl NodeSampler<'_, '_> {
         ext: &[f64; 3],
         eps: f64,
     ) {
+        if let Target::Subtree(node) = self.target {
+            // A face's rays share their direction and starting plane: traced together.
+            for part in range.clone().step_by(PACKET_MAX) {
+                let end = (part + PACKET_MAX).min(range.end);
+                let mut rays = [Ray::new([0.0; 3], dir); PACKET_MAX];
+                let mut hits = [None; PACKET_MAX];
+                let n = end - part;
+                for (ray, i) in rays.iter_mut().zip(part..end) {
+                    *ray = Ray::new(face_point(f, i, lo, ext), dir);
+                }
+                let (rays, hits) = (&rays[..n], &mut hits[..n]);
+                self.tracer
+                    .first_hits_along(node, rays, ext[f / 2], eps, hits);
+                for hit in hits.iter() {
+                    acc.rays += 1;
+                    if let Some((facing, raw, colour)) = hit.and_then(|h| shade(self.mesh, &h, dir))
+                    {
+                        acc.add(facing, raw, colour);
+                    }
+                }
+            }
+            return;
+        }
         for i in range {
             let origin = face_point(f, i, lo, ext);
             let ray = Ray::new(origin, dir);

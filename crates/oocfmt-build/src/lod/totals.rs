@@ -11,7 +11,7 @@
 use crate::kdtree::{KdNode, KdTree, NodeId};
 
 /// Per node (indexed by [`NodeId::index`]): distinct triangles and their summed area.
-pub(super) struct Totals {
+pub(crate) struct Totals {
     pub count: Vec<i64>,
     pub area: Vec<f64>,
 }

@@ -9,6 +9,7 @@ mod assemble;
 mod chunk;
 pub mod soup;
 mod split;
+mod tee;
 mod top;
 
 #[cfg(test)]

@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 
 use oocfmt::metadata::Material;
 
+use super::tee::MeshTee;
 use super::OocError;
 use crate::import::{
     ImportError, ImportReport, InputTriangle, Intake, Intaken, Location, MeshSink, Store,
@@ -194,12 +195,22 @@ pub struct Soup {
     pub normals: bool,
     pub colours: bool,
     pub report: ImportReport,
+    /// The mesh built beside the import, when one was asked for and the scene fitted.
+    tee: Option<MeshTee>,
 }
 
 impl Soup {
     /// The whole scene as one in-memory mesh, numbered exactly as if it had been imported into
-    /// a [`MeshSink`] directly.
-    pub fn load_mesh(&self) -> Result<Mesh, OocError> {
+    /// a [`MeshSink`] directly: the one built during the import when there is one, else read
+    /// back from the spill file.
+    pub fn load_mesh(&mut self) -> Result<Mesh, OocError> {
+        if let Some(mesh) = self
+            .tee
+            .take()
+            .and_then(|t| t.finish(self.materials.clone()))
+        {
+            return Ok(mesh?);
+        }
         let mut sink = MeshSink::new(false);
         for m in &self.materials {
             sink.add_material(m.clone())?;
@@ -215,6 +226,7 @@ impl Soup {
 /// Streams admitted triangles to a spill file, noting what the scene has.
 pub struct SoupStore {
     writer: SoupWriter,
+    tee: Option<MeshTee>,
     bounds: Bounds,
     normals: bool,
     colours: bool,
@@ -230,6 +242,9 @@ impl Store for SoupStore {
             path: self.writer.path.display().to_string(),
             source: std::io::Error::other(e.to_string()),
         })?;
+        if let Some(tee) = &mut self.tee {
+            tee.push(t);
+        }
         for p in t.positions {
             self.bounds.extend(p);
         }
@@ -243,9 +258,16 @@ impl Store for SoupStore {
 pub type SoupSink = Intake<SoupStore>;
 
 impl Intake<SoupStore> {
-    pub fn create(path: &Path, strict: bool) -> Result<SoupSink, OocError> {
+    /// `mesh_limit`: also build the in-memory mesh on a second thread, for a scene of at most
+    /// that many triangles (see [`MeshTee`]).
+    pub fn create(
+        path: &Path,
+        strict: bool,
+        mesh_limit: Option<u64>,
+    ) -> Result<SoupSink, OocError> {
         let store = SoupStore {
             writer: SoupWriter::create(path)?,
+            tee: mesh_limit.map(MeshTee::spawn),
             bounds: Bounds::EMPTY,
             normals: false,
             colours: false,
@@ -263,6 +285,7 @@ impl Intake<SoupStore> {
         } = self.finish_intake()?;
         let (path, count) = store.writer.finish()?;
         Ok(Soup {
+            tee: store.tee,
             path,
             count,
             bounds: store.bounds,

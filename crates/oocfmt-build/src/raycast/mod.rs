@@ -5,8 +5,11 @@
 //! the nearest hit over every leaf it visits and stops once that hit is no farther than the end
 //! of the current leaf's stretch of the ray, which no later leaf can undercut.
 
+mod packet;
+
 use crate::kdtree::{KdNode, KdTree, NodeId};
 use crate::mesh::{Bounds, Mesh};
+pub use packet::PACKET_MAX;
 
 /// A ray `origin + t · dir`, with the reciprocals of the direction's components (infinite for
 /// zero ones) so that slab tests multiply instead of divide.
@@ -209,6 +212,8 @@ pub struct Tracer<'a> {
     /// [`triangle_corners`] of the mesh, when the caller made them.
     corners: Option<&'a [[[f32; 3]; 3]]>,
     stack: Vec<(NodeId, f64, f64)>,
+    /// The stack of [`Tracer::first_hits_along`]: node, ray interval, rays still wanting it.
+    packet_stack: Vec<(NodeId, f64, f64, u64)>,
 }
 
 impl<'a> Tracer<'a> {
@@ -218,6 +223,7 @@ impl<'a> Tracer<'a> {
             tree,
             corners: None,
             stack: Vec::with_capacity(64),
+            packet_stack: Vec::with_capacity(64),
         }
     }
 
