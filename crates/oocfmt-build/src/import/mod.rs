@@ -75,6 +75,10 @@ pub struct InputTriangle {
     pub normals: Option<[[f32; 3]; 3]>,
     pub colours: Option<[[u8; 4]; 3]>,
     pub material: Option<u32>,
+    /// The importer's own numbers of the corners' vertices, when it has them: a hint that
+    /// spares the in-memory sink a hash lookup for a vertex met before. It never changes
+    /// which vertex a corner becomes, and spill files do not keep it.
+    pub hint: Option<[u32; 3]>,
 }
 
 impl InputTriangle {
@@ -84,6 +88,7 @@ impl InputTriangle {
             normals: None,
             colours: None,
             material: None,
+            hint: None,
         }
     }
 }

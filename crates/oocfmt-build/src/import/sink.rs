@@ -25,6 +25,24 @@ struct Vert {
     colour: Option<[u8; 4]>,
 }
 
+impl Vert {
+    /// What makes two vertices one: every attribute, bit for bit.
+    fn key(&self) -> [u32; 8] {
+        let n = self.normal.map_or([u32::MAX; 3], |n| n.map(f32::to_bits));
+        let c = self.colour.map_or(u32::MAX, u32::from_le_bytes);
+        [
+            self.position[0].to_bits(),
+            self.position[1].to_bits(),
+            self.position[2].to_bits(),
+            n[0],
+            n[1],
+            n[2],
+            c,
+            u32::from(self.colour.is_some()),
+        ]
+    }
+}
+
 /// What a mesh holding part of a scene must store because the whole scene has it, so every
 /// part's triangle blocks carry the same attributes.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -191,6 +209,10 @@ pub struct MeshStore {
     part: Option<PartSchema>,
     verts: Vec<Vert>,
     index: HashMap<[u32; 8], u32>,
+    /// By importer vertex number ([`InputTriangle::hint`]): the mesh vertex it last became.
+    /// Corners repeat the importer's vertices, and this answers most of them without a
+    /// probe into `index` (a cache miss each).
+    by_hint: Vec<u32>,
     triangles: Vec<[u32; 3]>,
     materials: Vec<Option<u32>>,
 }
@@ -228,24 +250,37 @@ impl Intake<MeshStore> {
 }
 
 impl MeshStore {
-    fn vertex(&mut self, v: Vert) -> u32 {
-        let n = v.normal.map_or([u32::MAX; 3], |n| n.map(f32::to_bits));
-        let c = v.colour.map_or(u32::MAX, u32::from_le_bytes);
-        let key = [
-            v.position[0].to_bits(),
-            v.position[1].to_bits(),
-            v.position[2].to_bits(),
-            n[0],
-            n[1],
-            n[2],
-            c,
-            u32::from(v.colour.is_some()),
-        ];
+    /// The mesh vertex of `v`: an existing one with the same key, else a new one. `hint`,
+    /// the importer's number for it, is checked first against the vertex it led to last time.
+    fn vertex(&mut self, v: Vert, hint: Option<u32>) -> u32 {
+        let key = v.key();
+        let slot = hint.map(|h| h as usize);
+        if let Some(&id) = slot.and_then(|h| self.by_hint.get(h)) {
+            if self
+                .verts
+                .get(id as usize)
+                .is_some_and(|known| known.key() == key)
+            {
+                return id;
+            }
+        }
         let next = self.verts.len() as u32;
-        *self.index.entry(key).or_insert_with(|| {
+        let id = *self.index.entry(key).or_insert_with(|| {
             self.verts.push(v);
             next
-        })
+        });
+        // A hint far beyond what the triangles so far could use is not followed, so the
+        // table stays within a few bytes per triangle whatever a caller passes.
+        let cap = (1 << 24) + 8 * self.triangles.len();
+        if let Some(h) = slot.filter(|&h| h < cap) {
+            if h >= self.by_hint.len() {
+                self.by_hint.resize(h + 1, u32::MAX);
+            }
+            if let Some(s) = self.by_hint.get_mut(h) {
+                *s = id;
+            }
+        }
+        id
     }
 
     pub(crate) fn triangle_count(&self) -> usize {
@@ -358,14 +393,15 @@ impl Store for MeshStore {
     fn store(&mut self, t: InputTriangle, _at: &Location) -> Result<(), ImportError> {
         let mut tri = [0u32; 3];
         for (k, slot) in tri.iter_mut().enumerate() {
-            *slot = self.vertex(Vert {
+            let v = Vert {
                 position: t.positions[k],
                 normal: t
                     .normals
                     .map(|n| n[k])
                     .filter(|n| n.iter().all(|c| c.is_finite())),
                 colour: t.colours.map(|c| c[k]),
-            });
+            };
+            *slot = self.vertex(v, t.hint.map(|h| h[k]));
         }
         self.triangles.push(tri);
         self.materials.push(t.material);
@@ -403,6 +439,47 @@ mod tests {
         // The corner whose normal was not finite: the geometric normal of its triangle.
         assert_eq!(normal_at([6.0, 0.0, 0.0]), Some([0.0, -1.0, 0.0]));
         assert_eq!(normal_at([5.0, 0.0, 1.0]), Some([0.0, 1.0, 0.0]));
+        Ok(())
+    }
+
+    #[test]
+    fn importer_hints_never_change_the_mesh() -> Result<(), ImportError> {
+        // Corners on a small lattice, some with colours: the same position recurs with
+        // different attributes, and the hints are absent, right, misleading or absurd.
+        let mesh_with = |mode: u32| {
+            let mut s = MeshSink::new(false);
+            let mut rng = crate::gen::rng::Rng(5);
+            let at = Location::line("t.obj", 1);
+            for i in 0..3000u32 {
+                let ids: [u32; 3] = std::array::from_fn(|_| rng.int(0, 63));
+                let mut t =
+                    tri(ids.map(|v| [(v % 4) as f32, ((v / 4) % 4) as f32, (v / 16) as f32]));
+                if i % 4 == 0 {
+                    t.colours = Some(ids.map(|v| [v as u8, 0, 0, 255]));
+                }
+                t.hint = match mode {
+                    0 => None,
+                    1 => Some(ids),
+                    2 => Some(ids.map(|v| (v * 7 + i) % 50)),
+                    _ => Some([u32::MAX, 1 << 31, ids[0]]),
+                };
+                s.push(t, &at)?;
+            }
+            Ok::<Mesh, ImportError>(s.finish()?.0)
+        };
+        let plain = mesh_with(0)?;
+        assert!(
+            plain.positions.len() > 64 && plain.triangles.len() > 1500,
+            "{} {}",
+            plain.positions.len(),
+            plain.triangles.len()
+        );
+        for mode in 1..4 {
+            assert!(
+                mesh_with(mode)? == plain,
+                "hint mode {mode} changed the mesh"
+            );
+        }
         Ok(())
     }
 

@@ -89,6 +89,7 @@ impl SoupTriangle {
                 normals: (flags & HAS_NORMALS != 0).then(|| corners(9)),
                 colours: (flags & HAS_COLOURS != 0).then(|| std::array::from_fn(|c| word(18 + c))),
                 material: (material != NO_MATERIAL).then_some(material),
+                hint: None,
             },
             primary: flags & NOT_PRIMARY == 0,
         }

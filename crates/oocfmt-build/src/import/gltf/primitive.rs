@@ -304,6 +304,7 @@ pub(super) fn emit(
             normals,
             colours,
             material,
+            hint: None,
         };
         if mirrored {
             // A mirroring transform turns counter-clockwise corners clockwise.
