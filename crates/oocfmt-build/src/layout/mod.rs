@@ -214,7 +214,7 @@ pub fn build_blocks(
         || triangle_blocks(mesh, tree, attrs, block_size),
     );
     let tree_plan = tree_plan?;
-    let (leaves, triangle_raw): (_, Vec<(RawBlock, TriangleCounts)>) = triangle_side?;
+    let (leaves, triangle_raw): TriangleBlocks = triangle_side?;
     let treelet_blocks =
         u32::try_from(tree_plan.blocks.len()).map_err(|_| LayoutError::TooMany("blocks"))?;
     let treelet_raw: Vec<RawBlock> = tree_plan
@@ -242,15 +242,17 @@ pub fn build_blocks(
     Ok(Container { blocks, metadata })
 }
 
-/// The triangle blocks, encoded, with what each holds, and where every leaf's list entries
-/// went (by node id).
-#[allow(clippy::type_complexity)]
+/// Where every leaf's list entries went (by node id), and the triangle blocks, encoded, with
+/// what each holds.
+type TriangleBlocks = (Vec<Option<LeafRef>>, Vec<(RawBlock, TriangleCounts)>);
+
+/// Plans and encodes the triangle blocks.
 fn triangle_blocks(
     mesh: &Mesh,
     tree: &KdTree,
     attrs: u16,
     block_size: usize,
-) -> Result<(Vec<Option<LeafRef>>, Vec<(RawBlock, TriangleCounts)>), LayoutError> {
+) -> Result<TriangleBlocks, LayoutError> {
     let vertices = VertexTable::new(mesh);
     let plan = triangles::plan_triangles(mesh, tree, &vertices, attrs, block_size)?;
     let blocks = plan

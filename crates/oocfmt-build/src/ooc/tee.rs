@@ -1,7 +1,7 @@
 //! The in-memory mesh, built on a second thread while the import writes the spill file. Whether
 //! a scene fits `--mem-limit` is known only once the import ends; building the mesh beside the
 //! import, instead of reading the spill file back afterwards, overlaps the de-duplication of
-//! vertices (as long as the parsing) with the parsing. A scene that outgrows the limit stops
+//! vertices with the parsing (they take about as long). A scene that outgrows the limit stops
 //! the thread and goes out of core from the spill file as before.
 
 use std::sync::mpsc::{sync_channel, SyncSender};
