@@ -184,8 +184,8 @@ mod tests {
     use super::*;
     use crate::gen::demo::demo_scene;
     use crate::gen::rng::Rng;
-    use crate::kdtree::{build, KdBuildOptions, KdTree};
-    use crate::mesh::{Bounds, Mesh};
+    use crate::kdtree::{build, KdBuildOptions};
+    use crate::mesh::Mesh;
 
     /// The demo scene plus a jittered grid of coplanar, overlapping squares: shared edges,
     /// triangles in split planes, ties between equally near hits.
@@ -212,31 +212,6 @@ mod tests {
             }
         }
         Mesh::new(mesh.positions, mesh.triangles)
-    }
-
-    /// Every node with its cell, in arena order.
-    fn cells(tree: &KdTree) -> Vec<(NodeId, Bounds)> {
-        let mut out = Vec::new();
-        let mut stack: Vec<(NodeId, Bounds)> = tree
-            .root()
-            .map(|r| (r, tree.bounds()))
-            .into_iter()
-            .collect();
-        while let Some((id, cell)) = stack.pop() {
-            out.push((id, cell));
-            if let Some(&KdNode::Inner {
-                axis,
-                split,
-                children,
-            }) = tree.node(id)
-            {
-                let (lo, hi) = cell.split(usize::from(axis), split);
-                for (c, cc) in children.into_iter().zip([lo, hi]) {
-                    stack.extend(c.map(|c| (c, cc)));
-                }
-            }
-        }
-        out
     }
 
     #[test]
@@ -268,7 +243,8 @@ mod tests {
         let mut single = Tracer::new(&mesh, &tree);
         let mut packed = Tracer::new(&mesh, &tree);
         let (mut rays_traced, mut hits_found) = (0, 0);
-        for (id, cell) in cells(&tree).into_iter().step_by(5) {
+        let all: Vec<NodeId> = (0..tree.nodes().len() as u32).map(NodeId).collect();
+        for (id, cell) in crate::lod::cells_of(&tree, &all).into_iter().step_by(5) {
             let lo = cell.min.map(f64::from);
             let hi = cell.max.map(f64::from);
             for f in 0..6 {
