@@ -112,17 +112,24 @@ impl Tracer<'_> {
                                 std::array::from_fn(|a| c[0][a].max(c[1][a]).max(c[2][a]));
                             let lo: [f32; 3] =
                                 std::array::from_fn(|a| c[0][a].min(c[1][a]).min(c[2][a]));
+                            // Most triangles of a leaf lie beside every ray: find the rays
+                            // whose reach meets the triangle's box before any f64 work.
+                            let mut near = 0u64;
+                            for k in bits(mask) {
+                                if let Some((rlo, rhi)) = reach.get(k) {
+                                    let meets = (0..3).all(|a| hi[a] >= rlo[a] && lo[a] <= rhi[a]);
+                                    near |= u64::from(meets) << k;
+                                }
+                            }
+                            if near == 0 {
+                                continue;
+                            }
                             let p = c.map(|p| p.map(f64::from));
                             let (e1, e2) = (sub(p[1], p[0]), sub(p[2], p[0]));
-                            for k in bits(mask) {
-                                let (Some(ray), Some(&(rlo, rhi)), Some(best)) =
-                                    (rays.get(k), reach.get(k), hits.get_mut(k))
-                                else {
+                            for k in bits(near) {
+                                let (Some(ray), Some(best)) = (rays.get(k), hits.get_mut(k)) else {
                                     continue;
                                 };
-                                if !(0..3).all(|a| hi[a] >= rlo[a] && lo[a] <= rhi[a]) {
-                                    continue;
-                                }
                                 let Some((th, u, v)) = moller_trumbore(ray, p[0], e1, e2) else {
                                     continue;
                                 };
