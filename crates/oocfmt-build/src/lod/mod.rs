@@ -87,22 +87,10 @@ impl LodData {
     }
 }
 
-/// Computes the LOD data of `nodes` (nodes of `tree` over `mesh`), in the same order. Runs in
-/// parallel over the nodes; the result does not depend on the thread count.
+/// Computes the LOD data of `nodes` (nodes of `tree` over `mesh`), in the same order, every
+/// node with its diagonal proxy directions. Runs in parallel over the nodes; the result does
+/// not depend on the thread count.
 pub fn compute(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId], voxel_threshold: f32) -> Vec<LodData> {
-    compute_with(mesh, tree, nodes, voxel_threshold, &|_| true)
-}
-
-/// Like [`compute`], but casts the twelve diagonal proxy directions only for the nodes
-/// `proxied` names: a node without a proxy never writes them, and they are most of the rays of
-/// a large subtree. The others' diagonal samples stay [`Sample::EMPTY`].
-pub fn compute_with(
-    mesh: &Mesh,
-    tree: &KdTree,
-    nodes: &[NodeId],
-    voxel_threshold: f32,
-    proxied: &(dyn Fn(NodeId) -> bool + Sync),
-) -> Vec<LodData> {
     let cells = cells_of(tree, nodes);
     let cell = |id: NodeId| {
         cells
@@ -112,7 +100,9 @@ pub fn compute_with(
             .map_or(Bounds::EMPTY, |&(_, c)| c)
     };
     let totals = triangle_totals(mesh, tree);
-    compute_in(mesh, tree, nodes, &cell, &totals, voxel_threshold, proxied)
+    compute_in(mesh, tree, nodes, &cell, &totals, voxel_threshold, &|_| {
+        true
+    })
 }
 
 /// The distinct triangles and their area under every node of `tree`, for [`compute_in`].
@@ -125,8 +115,11 @@ pub(crate) fn triangle_totals(mesh: &Mesh, tree: &KdTree) -> Totals {
     totals::totals(tree, &areas)
 }
 
-/// [`compute_with`] with each node's cell and the subtree totals given, for a caller that has
-/// them already (the layout planner knows every cell).
+/// [`compute`] with each node's cell and the subtree totals given, for a caller that has them
+/// already (the layout planner knows every cell). The twelve diagonal proxy directions are
+/// cast only for the nodes `proxied` names: a node without a proxy never writes them, and they
+/// are most of the rays of a large subtree; the others' diagonal samples stay
+/// [`Sample::EMPTY`].
 pub(crate) fn compute_in(
     mesh: &Mesh,
     tree: &KdTree,
