@@ -8,6 +8,8 @@ mod sah;
 
 pub(crate) use sah::clip_triangle;
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use crate::mesh::{Bounds, Mesh, MeshError};
 
 /// The spec's limit on triangles per leaf (a 12-bit field).
@@ -327,71 +329,107 @@ impl KdTree {
         {
             return Err(KdError::BadBounds(self.bounds));
         }
-        let mut seen = vec![false; n];
-        let mut stack = vec![(root, self.bounds, 1u32)];
-        while let Some((id, cell, depth)) = stack.pop() {
-            let node = self.node(id).ok_or(KdError::NodeOutOfRange {
-                node: id.0,
-                nodes: n,
-            })?;
-            match seen.get_mut(id.index()) {
-                Some(s) if !*s => *s = true,
-                _ => return Err(KdError::NotATree { node: id.0 }),
-            }
-            if depth > MAX_TREE_DEPTH {
-                return Err(KdError::TooDeep { depth });
-            }
-            match node {
-                KdNode::Leaf { triangles } => {
-                    if triangles.is_empty() || triangles.len() > MAX_LEAF_TRIANGLES as usize {
-                        return Err(KdError::LeafSize {
-                            node: id.0,
-                            triangles: triangles.len(),
-                        });
-                    }
-                    if let Some(&t) = triangles
-                        .iter()
-                        .find(|&&t| t as usize >= mesh.triangles.len())
-                    {
-                        return Err(KdError::TriangleOutOfRange {
-                            node: id.0,
-                            triangle: t,
-                            triangles: mesh.triangles.len(),
-                        });
-                    }
-                }
-                &KdNode::Inner {
-                    axis,
-                    split,
-                    children,
-                } => {
-                    let a = usize::from(axis);
-                    let inside = matches!((cell.min.get(a), cell.max.get(a)), (Some(&lo), Some(&hi)) if lo <= split && split <= hi);
-                    if !inside {
-                        return Err(KdError::BadSplit {
-                            node: id.0,
-                            axis,
-                            split,
-                        });
-                    }
-                    if children == [None, None] {
-                        return Err(KdError::NoChildren { node: id.0 });
-                    }
-                    let (lo, hi) = cell.split(a, split);
-                    for (child, c) in children.into_iter().zip([lo, hi]) {
-                        if let Some(child) = child {
-                            stack.push((child, c, depth + 1));
-                        }
-                    }
-                }
-            }
-        }
-        match seen.iter().position(|s| !s) {
+        let seen: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
+        self.check_subtree(mesh.triangles.len(), &seen, (root, self.bounds, 1))?;
+        match seen.iter().position(|s| !s.load(Ordering::Relaxed)) {
             Some(i) => Err(KdError::NotATree { node: i as u32 }),
             None => Ok(()),
         }
     }
+
+    /// Checks the subtree under `start` (node, cell, level), marking its nodes in `seen`: the
+    /// two sides of the top levels in parallel, the rest depth first.
+    fn check_subtree(
+        &self,
+        triangles: usize,
+        seen: &[AtomicBool],
+        start: Visit,
+    ) -> Result<(), KdError> {
+        // 2^10 parallel subtrees keep any number of cores busy.
+        const PARALLEL_LEVELS: u32 = 10;
+        if start.2 <= PARALLEL_LEVELS {
+            let [l, r] = self.check_node(triangles, seen, start)?;
+            let side = |s: Option<Visit>| match s {
+                Some(s) => self.check_subtree(triangles, seen, s),
+                None => Ok(()),
+            };
+            let (l, r) = rayon::join(|| side(l), || side(r));
+            return l.and(r);
+        }
+        let mut stack = vec![start];
+        while let Some(next) = stack.pop() {
+            stack.extend(
+                self.check_node(triangles, seen, next)?
+                    .into_iter()
+                    .flatten(),
+            );
+        }
+        Ok(())
+    }
+
+    /// Checks one node (node, cell, level) of a tree over `triangles` triangles and marks it in
+    /// `seen`; returns its children with their cells and levels.
+    fn check_node(
+        &self,
+        triangles: usize,
+        seen: &[AtomicBool],
+        (id, cell, depth): Visit,
+    ) -> Result<[Option<Visit>; 2], KdError> {
+        let node = self.node(id).ok_or(KdError::NodeOutOfRange {
+            node: id.0,
+            nodes: self.nodes.len(),
+        })?;
+        match seen.get(id.index()) {
+            Some(s) if !s.swap(true, Ordering::Relaxed) => {}
+            _ => return Err(KdError::NotATree { node: id.0 }),
+        }
+        if depth > MAX_TREE_DEPTH {
+            return Err(KdError::TooDeep { depth });
+        }
+        match node {
+            KdNode::Leaf { triangles: list } => {
+                if list.is_empty() || list.len() > MAX_LEAF_TRIANGLES as usize {
+                    return Err(KdError::LeafSize {
+                        node: id.0,
+                        triangles: list.len(),
+                    });
+                }
+                if let Some(&t) = list.iter().find(|&&t| t as usize >= triangles) {
+                    return Err(KdError::TriangleOutOfRange {
+                        node: id.0,
+                        triangle: t,
+                        triangles,
+                    });
+                }
+                Ok([None, None])
+            }
+            &KdNode::Inner {
+                axis,
+                split,
+                children,
+            } => {
+                let a = usize::from(axis);
+                let inside = matches!((cell.min.get(a), cell.max.get(a)), (Some(&lo), Some(&hi)) if lo <= split && split <= hi);
+                if !inside {
+                    return Err(KdError::BadSplit {
+                        node: id.0,
+                        axis,
+                        split,
+                    });
+                }
+                if children == [None, None] {
+                    return Err(KdError::NoChildren { node: id.0 });
+                }
+                let (lo, hi) = cell.split(a, split);
+                let [l, r] = children;
+                Ok([l.map(|l| (l, lo, depth + 1)), r.map(|r| (r, hi, depth + 1))])
+            }
+        }
+    }
 }
+
+/// A node to check, with its cell and level (the root 1).
+type Visit = (NodeId, Bounds, u32);
 
 /// Builds a kd-tree over every triangle of `mesh`, its root cell the scene box. See
 /// [`build_cell`] for how nodes are split. Deterministic: the same mesh and options give the

@@ -88,13 +88,16 @@ impl<'a> Builder<'a> {
             .collect();
         drop(tris);
         let occupied = occupied(&refs);
-        self.parallel(Job {
+        let piece = self.parallel(Job {
             refs,
             cell,
             occupied,
             depth,
             bad: 0,
-        })
+        })?;
+        let mut out = Vec::with_capacity(piece.len());
+        piece.flatten_into(&mut out);
+        Ok(out)
     }
 
     /// The bounds of triangle `tri` clipped to the box `to`.
@@ -110,14 +113,17 @@ impl<'a> Builder<'a> {
         }
     }
 
-    fn parallel(&self, job: Job) -> Result<Vec<KdNode>, KdError> {
+    /// The subtree of `job` as pieces: the parallel part is joined once, at the end, instead
+    /// of copying every subtree's nodes into its parent's array at each parallel level (about
+    /// a dozen copies of the whole tree, each into freshly faulted pages, at 10M triangles).
+    fn parallel(&self, job: Job) -> Result<Piece, KdError> {
         if job.refs.len() < PARALLEL_SUBTREE {
             let mut out = Vec::new();
             self.sequential(job, &mut out)?;
-            return Ok(out);
+            return Ok(Piece::Nodes(out));
         }
         match self.step(job)? {
-            Step::Leaf(refs) => Ok(vec![leaf_node(refs)]),
+            Step::Leaf(refs) => Ok(Piece::Nodes(vec![leaf_node(refs)])),
             Step::Split {
                 axis,
                 split,
@@ -126,31 +132,24 @@ impl<'a> Builder<'a> {
             } => {
                 let side = |job: Job| {
                     if job.refs.is_empty() {
-                        Ok(Vec::new())
+                        Ok(None)
                     } else {
-                        self.parallel(job)
+                        self.parallel(job).map(Some)
                     }
                 };
                 let (l, r) = rayon::join(|| side(left), || side(right));
                 // The left error first, so a failing build reports the same error every time.
                 let (l, r) = (l?, r?);
-                let right_at = 1 + l.len();
-                let total = right_at + r.len();
-                if u32::try_from(total).is_err() {
+                let len = 1 + l.as_ref().map_or(0, Piece::len) + r.as_ref().map_or(0, Piece::len);
+                if u32::try_from(len).is_err() {
                     return Err(KdError::TooManyNodes);
                 }
-                let mut out = Vec::with_capacity(total);
-                out.push(KdNode::Inner {
+                Ok(Piece::Split {
                     axis: axis as u8,
                     split,
-                    children: [
-                        (!l.is_empty()).then_some(NodeId(1)),
-                        (!r.is_empty()).then_some(NodeId(right_at as u32)),
-                    ],
-                });
-                append_shifted(&mut out, l, 1);
-                append_shifted(&mut out, r, right_at as u32);
-                Ok(out)
+                    children: Box::new([l, r]),
+                    len,
+                })
             }
         }
     }
@@ -715,6 +714,59 @@ impl CostModel {
 /// Surface area of a box with these extents.
 fn area(d: [f64; 3]) -> f64 {
     2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
+}
+
+/// A subtree built in parallel, not yet in one array: the sides of a split are pieces built by
+/// separate tasks.
+enum Piece {
+    /// A subtree in preorder with ids local to it.
+    Nodes(Vec<KdNode>),
+    Split {
+        axis: u8,
+        split: f32,
+        /// Low and high side; an empty side is `None`.
+        children: Box<[Option<Piece>; 2]>,
+        /// Nodes in the subtree (checked to fit a `u32`).
+        len: usize,
+    },
+}
+
+impl Piece {
+    fn len(&self) -> usize {
+        match self {
+            Piece::Nodes(nodes) => nodes.len(),
+            Piece::Split { len, .. } => *len,
+        }
+    }
+
+    /// Appends the subtree in preorder, parent, low side, high side, with ids shifted to its
+    /// place in `out`: the array a sequential depth-first build would make.
+    fn flatten_into(self, out: &mut Vec<KdNode>) {
+        let base = out.len() as u32;
+        match self {
+            Piece::Nodes(nodes) => append_shifted(out, nodes, base),
+            Piece::Split {
+                axis,
+                split,
+                children,
+                ..
+            } => {
+                let [l, r] = *children;
+                let right_at = 1 + l.as_ref().map_or(0, Piece::len) as u32;
+                out.push(KdNode::Inner {
+                    axis,
+                    split,
+                    children: [
+                        l.is_some().then_some(NodeId(base + 1)),
+                        r.is_some().then_some(NodeId(base + right_at)),
+                    ],
+                });
+                for side in [l, r].into_iter().flatten() {
+                    side.flatten_into(out);
+                }
+            }
+        }
+    }
 }
 
 /// Appends a subtree built with local ids, renumbering its child links by `offset`.

@@ -313,7 +313,7 @@ fn metadata(
     let mut counts = Counts {
         treelets: plan.treelets.len() as u64,
         proxies: plan.lod_order.len() as u64,
-        depth: tree.depth(),
+        depth: plan.depth,
         lod_levels: plan.lod_levels,
         ..Counts::default()
     };

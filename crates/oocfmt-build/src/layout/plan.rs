@@ -8,6 +8,7 @@ use oocfmt::records::{
     LodKinds, Rlod, TreeletBlockWriter, NODE_BASIC_LEN, NODE_LEAF_LEN, NODE_LOD_LEN, NO_PROXY,
     RLOD_LEN,
 };
+use rayon::prelude::*;
 
 use super::LayoutError;
 use crate::kdtree::{KdNode, KdTree, NodeId};
@@ -30,10 +31,8 @@ pub(crate) enum Role {
 pub(crate) struct NodeInfo {
     pub role: Role,
     pub cell: Bounds,
-    /// Bytes of this node and the part of its subtree inside its treelet (preorder span).
-    pub span_bytes: usize,
     /// LOD nodes: index into [`TreePlan::lod`].
-    pub lod: usize,
+    pub lod: u32,
     /// LOD nodes: proxy id, numbered in file order.
     pub proxy: u32,
     /// LOD nodes: the block of the child treelets and the index of the first one in it.
@@ -48,7 +47,6 @@ impl Default for NodeInfo {
         NodeInfo {
             role: Role::Basic,
             cell: Bounds::EMPTY,
-            span_bytes: 0,
             lod: 0,
             proxy: NO_PROXY,
             child_block: 0,
@@ -65,6 +63,16 @@ pub(crate) struct Treelet {
     pub node_bytes: usize,
     pub voxel_bytes: usize,
     pub nodes: Vec<NodeId>,
+    /// Bytes of each node and the part of its subtree inside the treelet, in `nodes` order.
+    pub spans: Vec<usize>,
+}
+
+impl Treelet {
+    /// The span of node `id` of this treelet.
+    pub fn span(&self, id: NodeId) -> Option<usize> {
+        let k = self.nodes.iter().position(|&n| n == id)?;
+        self.spans.get(k).copied()
+    }
 }
 
 #[derive(Clone, Debug, Default)]
@@ -105,6 +113,8 @@ pub(crate) struct TreePlan {
     /// first, so a cap on proxies keeps the ones that stand for the biggest subtrees.
     pub lod_order: Vec<NodeId>,
     pub lod_levels: u32,
+    /// Node levels of the tree (a lone root: 1; none: 0).
+    pub depth: u32,
     /// The root's treelet, when [`PlanSpec::detach_root`] kept it out of the blocks.
     pub detached: Option<usize>,
 }
@@ -115,11 +125,11 @@ impl TreePlan {
     }
 
     pub fn lod_data(&self, id: NodeId) -> Option<&LodData> {
-        self.lod.get(self.info(id).lod)
+        self.lod.get(self.info(id).lod as usize)
     }
 
     pub fn rlod(&self, id: NodeId) -> Option<&Rlod> {
-        self.rlods.get(self.info(id).lod)
+        self.rlods.get(self.info(id).lod as usize)
     }
 
     /// Bytes of a LOD node's entry in the LOD area.
@@ -132,6 +142,9 @@ impl TreePlan {
         voxel + if self.kinds.rlod { RLOD_LEN } else { 0 }
     }
 }
+
+/// A LOD node and its children, the roots of its child treelets.
+type ChildRoots = (NodeId, [Option<NodeId>; 2]);
 
 /// A LOD node's present children, cut into treelets that must share a block, left first.
 struct Unit {
@@ -220,7 +233,7 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
     };
     // The subtree totals the sampling needs take a serial pass over the tree: beside the
     // serial classification.
-    let info = &mut plan.info;
+    let (info, levels) = (&mut plan.info, &mut plan.depth);
     let (height, offset, max_proxies) = (spec.treelet_height, spec.depth_offset, spec.max_proxies);
     let sampled = match &spec.lod {
         LodSource::Sample { mesh, .. } => Some(*mesh),
@@ -228,7 +241,7 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
     };
     let ((lod_nodes, proxied), totals) = rayon::join(
         || {
-            let lod_nodes = classify(tree, root, height, offset, info);
+            let lod_nodes = classify(tree, root, height, offset, info, levels);
             let mut proxied = vec![false; tree.nodes().len()];
             for id in file_order_lod_nodes(tree, root, info, max_proxies) {
                 if let Some(p) = proxied.get_mut(id.index()) {
@@ -272,7 +285,8 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
     let root_treelet = make_treelet(tree, &mut plan, root);
     let mut units = if spec.detach_root {
         plan.detached = Some(root_treelet);
-        expand(&mut plan, tree, root_treelet, spec, &|_| false)?
+        let kids = expand(&mut plan, tree, root_treelet, spec, &|_| false)?;
+        number_treelets(&mut plan, tree, kids)
     } else {
         vec![Unit {
             parent: None,
@@ -294,7 +308,7 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
                 next.extend(expand(&mut plan, tree, t, spec, &wants)?);
             }
         }
-        units = next;
+        units = number_treelets(&mut plan, tree, next);
         level = level
             .checked_add(1)
             .ok_or(LayoutError::TooMany("LOD levels"))?;
@@ -303,16 +317,16 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
     Ok(plan)
 }
 
-/// The units of child treelets below the LOD nodes of treelet `t`, giving proxy ids to those
-/// `wants` names on the way (numbered in the order the file stores them). LOD nodes whose
-/// children live elsewhere get their references instead.
+/// The LOD nodes of treelet `t` with the roots of their child treelets, giving proxy ids to
+/// those `wants` names on the way (numbered in the order the file stores them). LOD nodes
+/// whose children live elsewhere get their references instead.
 fn expand(
     plan: &mut TreePlan,
     tree: &KdTree,
     t: usize,
     spec: &PlanSpec,
     wants: &dyn Fn(NodeId) -> bool,
-) -> Result<Vec<Unit>, LayoutError> {
+) -> Result<Vec<ChildRoots>, LayoutError> {
     let lods: Vec<NodeId> = plan
         .treelets
         .get(t)
@@ -344,18 +358,40 @@ fn expand(
             }
             continue;
         }
-        let kids: Vec<usize> = tree
-            .children(n)
-            .into_iter()
-            .flatten()
-            .map(|c| make_treelet(tree, plan, c))
-            .collect();
-        units.push(Unit {
-            parent: Some(n),
-            treelets: kids,
-        });
+        units.push((n, tree.children(n)));
     }
     Ok(units)
+}
+
+/// The units of child treelets under `parents`, in order: their treelets are collected in
+/// parallel (they share no node), then numbered in the order a serial walk would number them.
+fn number_treelets(plan: &mut TreePlan, tree: &KdTree, parents: Vec<ChildRoots>) -> Vec<Unit> {
+    let roots: Vec<NodeId> = parents
+        .iter()
+        .flat_map(|(_, kids)| kids.iter().flatten())
+        .copied()
+        .collect();
+    let plan_ref = &*plan;
+    let collected: Vec<Treelet> = roots
+        .par_iter()
+        .map(|&r| collect_treelet(tree, plan_ref, r))
+        .collect();
+    let mut collected = collected.into_iter();
+    parents
+        .into_iter()
+        .map(|(parent, kids)| Unit {
+            parent: Some(parent),
+            treelets: kids
+                .iter()
+                .flatten()
+                .zip(collected.by_ref())
+                .map(|(_, treelet)| {
+                    plan.treelets.push(treelet);
+                    plan.treelets.len() - 1
+                })
+                .collect(),
+        })
+        .collect()
 }
 
 /// The first `max` LOD nodes in the order the file stores them: level by level, each level in
@@ -398,7 +434,8 @@ pub(crate) fn is_lod_depth(depth: u32, height: u8) -> bool {
     depth % h == h - 1
 }
 
-/// Records every node's cell and role; returns the LOD nodes in arena order. An inner node at
+/// Records every node's cell and role and the tree's node levels in `levels`; returns the LOD
+/// nodes in arena order. An inner node at
 /// scene depth `d` (`offset` is the depth of this tree's root) is a LOD node when
 /// [`is_lod_depth`] says so.
 fn classify(
@@ -407,9 +444,12 @@ fn classify(
     height: u8,
     offset: u32,
     info: &mut [NodeInfo],
+    levels: &mut u32,
 ) -> Vec<NodeId> {
     let mut stack = vec![(root, offset, tree.bounds())];
+    let mut deepest = offset;
     while let Some((id, depth, cell)) = stack.pop() {
+        deepest = deepest.max(depth);
         let role = match tree.node(id) {
             Some(&KdNode::Inner {
                 axis,
@@ -436,18 +476,28 @@ fn classify(
         }
     }
     let mut lods = Vec::new();
+    *levels = deepest - offset + 1;
     for (k, i) in info.iter_mut().enumerate() {
         if i.role == Role::Lod {
-            i.lod = lods.len();
+            // Fits: there are fewer LOD nodes than node ids, which are `u32`.
+            i.lod = lods.len() as u32;
             lods.push(NodeId(k as u32));
         }
     }
     lods
 }
 
-/// Collects the treelet rooted at `root` (nodes down to and including LOD nodes and leaves),
-/// computes its byte spans, and returns its index.
+/// Collects the treelet rooted at `root` and returns its index.
 fn make_treelet(tree: &KdTree, plan: &mut TreePlan, root: NodeId) -> usize {
+    let treelet = collect_treelet(tree, plan, root);
+    plan.treelets.push(treelet);
+    plan.treelets.len() - 1
+}
+
+/// The treelet rooted at `root`: its nodes in preorder, down to and including LOD nodes and
+/// leaves, with their byte spans. Reads the nodes' roles and LOD sizes only, so treelets can
+/// be collected in parallel.
+fn collect_treelet(tree: &KdTree, plan: &TreePlan, root: NodeId) -> Treelet {
     let mut nodes = Vec::new();
     let mut stack = vec![root];
     while let Some(id) = stack.pop() {
@@ -459,37 +509,33 @@ fn make_treelet(tree: &KdTree, plan: &mut TreePlan, root: NodeId) -> usize {
         }
     }
     let mut voxel_bytes = 0;
-    // Reverse preorder visits children before their parent.
-    for &id in nodes.iter().rev() {
-        let i = plan.info(id);
-        let span = match i.role {
+    let mut spans = vec![0; nodes.len()];
+    // Reverse preorder meets a basic node right after its subtrees, high side first: the
+    // spans of its children are then the last ones on `done`.
+    let mut done: Vec<usize> = Vec::new();
+    for (&id, slot) in nodes.iter().zip(spans.iter_mut()).rev() {
+        let span = match plan.info(id).role {
             Role::Leaf => NODE_LEAF_LEN,
             Role::Lod => {
                 voxel_bytes += plan.lod_entry_bytes(id);
                 NODE_LOD_LEN
             }
             Role::Basic => {
-                NODE_BASIC_LEN
-                    + tree
-                        .children(id)
-                        .into_iter()
-                        .flatten()
-                        .map(|c| plan.info(c).span_bytes)
-                        .sum::<usize>()
+                let kids = tree.children(id).iter().flatten().count();
+                let below: usize = done.drain(done.len().saturating_sub(kids)..).sum();
+                NODE_BASIC_LEN + below
             }
         };
-        if let Some(slot) = plan.info.get_mut(id.index()) {
-            slot.span_bytes = span;
-        }
+        *slot = span;
+        done.push(span);
     }
-    let node_bytes = plan.info(root).span_bytes;
-    plan.treelets.push(Treelet {
+    Treelet {
         root,
-        node_bytes,
+        node_bytes: spans.first().copied().unwrap_or(0),
         voxel_bytes,
         nodes,
-    });
-    plan.treelets.len() - 1
+        spans,
+    }
 }
 
 /// Packs one level's units into new blocks, consecutively, and points every parent LOD node

@@ -378,6 +378,7 @@ fn every_treelet_height_and_block_size_works() -> Res<()> {
             "height {h}"
         );
         assert_eq!(found.meta.build.treelet_height, h);
+        assert_eq!(found.meta.counts.depth, tree.depth(), "height {h}");
     }
     Ok(())
 }

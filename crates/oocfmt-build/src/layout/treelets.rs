@@ -3,7 +3,7 @@
 
 use oocfmt::records::{Node, TreeletBlockWriter};
 
-use super::plan::{PlannedBlock, Role, TreePlan};
+use super::plan::{PlannedBlock, Role, TreePlan, Treelet};
 use super::triangles::LeafRef;
 use super::LayoutError;
 use crate::kdtree::{KdNode, KdTree, NodeId};
@@ -17,29 +17,33 @@ pub(crate) fn encode_treelets(
     leaves: &[Option<LeafRef>],
     first_triangle_block: u32,
 ) -> Result<Vec<u8>, LayoutError> {
-    let mut enc = Encoder {
-        w: TreeletBlockWriter::new(),
-        tree,
-        plan,
-        leaves,
-        first_triangle_block,
-    };
+    let mut w = TreeletBlockWriter::new();
     for &t in &block.treelets {
-        let root = plan
+        let treelet = plan
             .treelets
             .get(t)
-            .map(|tl| tl.root)
             .ok_or(LayoutError::Internal("a planned treelet is missing"))?;
+        let mut enc = Encoder {
+            w,
+            tree,
+            plan,
+            treelet,
+            leaves,
+            first_triangle_block,
+        };
         enc.w.begin_treelet();
-        enc.node(root)?;
+        enc.node(treelet.root)?;
+        w = enc.w;
     }
-    Ok(enc.w.finish())
+    Ok(w.finish())
 }
 
 struct Encoder<'a> {
     w: TreeletBlockWriter,
     tree: &'a KdTree,
     plan: &'a TreePlan,
+    /// The treelet being written.
+    treelet: &'a Treelet,
     leaves: &'a [Option<LeafRef>],
     first_triangle_block: u32,
 }
@@ -124,7 +128,14 @@ impl Encoder<'_> {
                 }),
             ) => {
                 let left_at = pos + oocfmt::records::NODE_BASIC_LEN;
-                let right_at = left_at + l.map_or(0, |l| self.plan.info(l).span_bytes);
+                let left_span = match l {
+                    Some(l) => self
+                        .treelet
+                        .span(l)
+                        .ok_or(LayoutError::Internal("a child is outside its treelet"))?,
+                    None => 0,
+                };
+                let right_at = left_at + left_span;
                 let units = |present: bool, at: usize| -> Result<u16, LayoutError> {
                     if present {
                         TreeletBlockWriter::units_between(pos, at)

@@ -268,7 +268,7 @@ pub fn build_chunk(
     )?;
 
     let mut counts = ChunkCounts {
-        depth: chunk.depth + tree.depth(),
+        depth: chunk.depth + plan.depth,
         ..ChunkCounts::default()
     };
     let mut treelet_blocks = Vec::with_capacity(plan.blocks.len());
