@@ -147,27 +147,62 @@ pub fn write_blocks(
     progress: &mut dyn FnMut(u64),
 ) -> Result<WriteSummary, LayoutError> {
     let mut writer = Writer::create(path, write)?;
+    let mut appender = Appender::new(&mut writer, write.codec);
     let mut done = 0u64;
     for batch in container.blocks.chunks(ENCODE_BATCH) {
-        append(&mut writer, write.codec, batch)?;
+        appender.push(batch)?;
         done += batch.len() as u64;
         progress(done);
     }
+    appender.finish()?;
     Ok(writer.finish(&container.metadata)?)
 }
 
-/// Compresses `blocks` in parallel and appends them in order. Callers pass batches of at most
-/// [`ENCODE_BATCH`] blocks, which bounds the memory compressed blocks wait in.
-pub(crate) fn append(
-    writer: &mut Writer,
+/// Compresses batches of at most [`ENCODE_BATCH`] blocks in parallel and appends them in
+/// order. A batch is written while the next one is compressed, so the cores are not left
+/// waiting on the writer; at most two batches of compressed blocks wait in memory.
+pub(crate) struct Appender<'w> {
+    writer: &'w mut Writer,
     codec: oocfmt::Codec,
-    blocks: &[RawBlock],
-) -> Result<(), oocfmt::Error> {
-    let encoded: Vec<EncodedBlock> = blocks
-        .par_iter()
-        .map(|b| EncodedBlock::encode(codec, b.kind, b.level, b.item_count, &b.raw))
-        .collect::<Result<_, _>>()?;
-    for b in encoded {
+    pending: Vec<EncodedBlock>,
+}
+
+impl<'w> Appender<'w> {
+    pub(crate) fn new(writer: &'w mut Writer, codec: oocfmt::Codec) -> Appender<'w> {
+        Appender {
+            writer,
+            codec,
+            pending: Vec::new(),
+        }
+    }
+
+    pub(crate) fn push(&mut self, blocks: &[RawBlock]) -> Result<(), oocfmt::Error> {
+        let codec = self.codec;
+        let pending = std::mem::take(&mut self.pending);
+        let writer = &mut *self.writer;
+        let (encoded, written) = rayon::join(
+            || {
+                blocks
+                    .par_iter()
+                    .map(|b| EncodedBlock::encode(codec, b.kind, b.level, b.item_count, &b.raw))
+                    .collect::<Result<Vec<_>, _>>()
+            },
+            || write_all(writer, pending),
+        );
+        // The earlier batch's failure first.
+        written?;
+        self.pending = encoded?;
+        Ok(())
+    }
+
+    /// Writes the last batch.
+    pub(crate) fn finish(self) -> Result<(), oocfmt::Error> {
+        write_all(self.writer, self.pending)
+    }
+}
+
+fn write_all(writer: &mut Writer, blocks: Vec<EncodedBlock>) -> Result<(), oocfmt::Error> {
+    for b in blocks {
         writer.write_encoded(b)?;
     }
     Ok(())

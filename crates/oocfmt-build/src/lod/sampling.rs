@@ -217,8 +217,7 @@ impl NodeSampler<'_, '_> {
                     .first_hits_along(node, rays, ext[f / 2], eps, hits);
                 for hit in hits.iter() {
                     acc.rays += 1;
-                    if let Some((facing, raw, colour)) = hit.and_then(|h| shade(self.mesh, &h, dir))
-                    {
+                    if let Some((facing, raw, colour)) = hit.and_then(|h| self.shade(&h, dir)) {
                         acc.add(facing, raw, colour);
                     }
                 }
@@ -285,14 +284,20 @@ impl NodeSampler<'_, '_> {
         acc
     }
 
+    /// What a ray along `dir` sees at `hit`, the corners taken from the tracer's table.
+    fn shade(&self, hit: &Hit, dir: [f64; 3]) -> Option<Shade> {
+        shade_at(self.mesh, hit, self.tracer.corners(hit.triangle)?, dir)
+    }
+
     fn trace(&mut self, acc: &mut Acc, ray: &Ray, t1: f64, eps: f64) {
         let shaded = match &mut self.target {
-            Target::Each(triangles) => first_hit_of(triangles, ray, 0.0, t1, eps)
-                .and_then(|hit| shade(self.mesh, &hit, ray.dir)),
-            Target::Subtree(node) => self
-                .tracer
-                .first_hit(*node, ray, 0.0, t1, eps)
-                .and_then(|hit| shade(self.mesh, &hit, ray.dir)),
+            Target::Each(triangles) => {
+                first_hit_of(triangles, ray, 0.0, t1, eps).and_then(|hit| self.shade(&hit, ray.dir))
+            }
+            Target::Subtree(node) => {
+                let hit = self.tracer.first_hit(*node, ray, 0.0, t1, eps);
+                hit.and_then(|hit| self.shade(&hit, ray.dir))
+            }
             Target::Oracle(answer) => answer(ray, t1, eps),
         };
         if let Some((facing, raw, colour)) = shaded {
@@ -352,11 +357,25 @@ fn face_point(f: usize, i: usize, lo: &[f64; 3], ext: &[f64; 3]) -> [f64; 3] {
 /// The normal turned to face a ray along `dir`, the mesh's own normal, and the colour at a hit.
 /// Normals are the interpolated vertex normals when the mesh has them, else the geometric one.
 pub(crate) fn shade(mesh: &Mesh, hit: &Hit, dir: [f64; 3]) -> Option<Shade> {
+    shade_at(mesh, hit, mesh.corners(hit.triangle as usize)?, dir)
+}
+
+/// [`shade`] given the hit triangle's corners, which a tracer has at hand: the mesh's own
+/// vertex arrays are then read only for normals and colours.
+pub(crate) fn shade_at(
+    mesh: &Mesh,
+    hit: &Hit,
+    corners: [[f32; 3]; 3],
+    dir: [f64; 3],
+) -> Option<Shade> {
     let t = hit.triangle as usize;
-    let idx = *mesh.triangles.get(t)?;
-    let p = mesh.corners(t)?.map(|c| c.map(f64::from));
+    let p = corners.map(|c| c.map(f64::from));
     let w = [1.0 - hit.u - hit.v, hit.u, hit.v];
     let geometric = normalise(cross(sub(p[1], p[0]), sub(p[2], p[0])));
+    let idx = match (&mesh.normals, &mesh.colours) {
+        (None, None) => [0; 3],
+        _ => *mesh.triangles.get(t)?,
+    };
     let interpolated = mesh.normals.as_ref().map(|ns| {
         let mut sum = [0.0; 3];
         for (&v, &wk) in idx.iter().zip(&w) {

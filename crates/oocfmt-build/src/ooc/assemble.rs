@@ -12,7 +12,7 @@ use oocfmt::{BlockKind, EncodedBlock, Metadata, WriteOptions, WriteSummary, Writ
 
 use super::chunk::{ChunkOut, SpilledBlock};
 use super::OocError;
-use crate::layout::{append, LayoutError, RawBlock, ENCODE_BATCH};
+use crate::layout::{Appender, LayoutError, RawBlock, ENCODE_BATCH};
 use crate::progress::Progress;
 
 /// Where each block of the file comes from, in file order, and the final id of every chunk
@@ -179,6 +179,7 @@ pub fn write(
     let proxy_blocks = proxies.len().div_ceil(PROXY_LEN * per_block);
     progress.phase("write", Some((order.blocks.len() + proxy_blocks) as u64));
     let mut writer = Writer::create(path, write)?;
+    let mut appender = Appender::new(&mut writer, write.codec);
     let mut done = 0u64;
     for batch in order.blocks.chunks(ENCODE_BATCH) {
         let raws: Vec<RawBlock> = batch
@@ -205,10 +206,11 @@ pub fn write(
                 }
             })
             .collect::<Result<_, OocError>>()?;
-        append(&mut writer, write.codec, &raws)?;
+        appender.push(&raws)?;
         done += batch.len() as u64;
         progress.advance(done);
     }
+    appender.finish()?;
     for records in proxies.chunks(PROXY_LEN * per_block) {
         let n = u32::try_from(records.len() / PROXY_LEN)
             .map_err(|_| LayoutError::TooMany("proxies"))?;

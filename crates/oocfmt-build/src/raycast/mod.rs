@@ -240,8 +240,9 @@ impl<'a> Tracer<'a> {
         }
     }
 
+    /// Triangle `t`'s corners, from the copied table when the tracer has one.
     #[inline]
-    fn corners(&self, t: u32) -> Option<[[f32; 3]; 3]> {
+    pub fn corners(&self, t: u32) -> Option<[[f32; 3]; 3]> {
         match self.corners {
             Some(cs) => cs.get(t as usize).copied(),
             None => self.mesh.corners(t as usize),

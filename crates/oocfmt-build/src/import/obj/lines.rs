@@ -78,7 +78,8 @@ impl<R: BufRead> Lines<R> {
             return Ok(None);
         }
         strip_comment(&mut self.buf);
-        if std::str::from_utf8(&self.buf).is_err() {
+        // ASCII (nearly every line) is checked several times faster than UTF-8.
+        if !self.buf.is_ascii() && std::str::from_utf8(&self.buf).is_err() {
             self.buf = String::from_utf8_lossy(&self.buf).into_owned().into_bytes();
         }
         let text = std::str::from_utf8(&self.buf).unwrap_or_default();
@@ -89,6 +90,10 @@ impl<R: BufRead> Lines<R> {
 /// Cuts the line at a `#` that starts a word, so `v 1 2 3 # note` works but a material named
 /// `steel#2` keeps its name.
 fn strip_comment(line: &mut Vec<u8>) {
+    // Most lines have no `#`: one memchr pass finds that.
+    if !line.contains(&b'#') {
+        return;
+    }
     let cut = line
         .iter()
         .enumerate()
