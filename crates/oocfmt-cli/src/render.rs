@@ -72,6 +72,11 @@ pub struct Args {
     /// leave)
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_FETCHER_NICE, value_parser = clap::value_parser!(u8).range(0..=19))]
     pub fetcher_nice: u8,
+    /// Async cache: CPU time the fetchers may spend reading and decoding blocks per frame, as a
+    /// share of the last frame's duration (0.5: half a frame; `inf`: no limit). A burst of
+    /// requests then arrives over several frames instead of slowing one down
+    #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_FETCH_SHARE, value_parser = parse_share)]
+    pub fetch_share: f64,
     /// Walkthroughs with the async cache: look-ahead prefetching (after iWalk): after each
     /// frame, predict the next cameras from the linear and angular speed of the last two,
     /// trace a coarse grid of probe rays from them against the resident blocks, and fetch the
@@ -146,6 +151,16 @@ fn parse_mb(s: &str) -> Result<f64, String> {
         Ok(m) if m.is_finite() && m > 0.0 && m <= f64::from(1u32 << 30) => Ok(m),
         _ => Err(format!(
             "`{s}`: expected MiB, a number > 0 and at most 2^30"
+        )),
+    }
+}
+
+/// A share of a frame: a number > 0, or `inf`.
+fn parse_share(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(x) if x > 0.0 && !x.is_nan() => Ok(x),
+        _ => Err(format!(
+            "`{s}`: expected a share of a frame, a number > 0 or `inf`"
         )),
     }
 }
@@ -248,6 +263,7 @@ impl Cache {
             fetch_order: FetchOrder::parse(&a.fetch_order).unwrap_or_default(),
             eviction: Eviction::parse(&a.eviction).unwrap_or_default(),
             fetcher_nice: a.fetcher_nice,
+            fetch_share: a.fetch_share,
             prefetch_bytes: if a.prefetch == "on" {
                 (a.prefetch_mb * 1048576.0) as u64
             } else {

@@ -386,6 +386,47 @@ fn reading_ahead_fills_a_cold_view_in_fewer_frames_and_only_into_free_room() {
     assert!(tight.stats().peak_bytes_resident as usize <= needed + needed / 4);
 }
 
+#[test]
+fn the_fetch_share_spreads_a_burst_over_frames_and_waiting_lifts_it() {
+    let dir = tempfile::tempdir().unwrap();
+    // Small blocks: each level of the view's tree spreads over many of them.
+    let path = uncompressed_mandelbulb(dir.path(), 20_000);
+    let scene = Arc::new(Scene::open(&path).unwrap());
+    let cam = views(&scene)[0];
+    let cache_with = |share: f64| {
+        let opts = AsyncOptions {
+            fetchers: 1,
+            read_ahead: 0,
+            fetch_share: share,
+            ..AsyncOptions::default()
+        };
+        AsyncCache::with_options(Arc::clone(&scene), 256 << 20, &opts)
+    };
+    // The most blocks one step published in 8 frames, the fetchers given time to spare.
+    let largest_burst = |cache: &AsyncCache| {
+        let mut largest = 0;
+        for _ in 0..8 {
+            let before = cache.stats().blocks_loaded;
+            render(&scene, cache, &cam, &POE0).unwrap();
+            std::thread::sleep(std::time::Duration::from_millis(50));
+            cache.end_frame();
+            largest = largest.max(cache.stats().blocks_loaded - before);
+        }
+        largest
+    };
+    let free = cache_with(f64::INFINITY);
+    let unlimited = largest_burst(&free);
+    assert!(
+        unlimited > 1,
+        "the view wants several blocks a frame: {unlimited}"
+    );
+    // A share of next to nothing: one block per frame (the first after a step always starts).
+    let tight = cache_with(1e-9);
+    assert_eq!(largest_burst(&tight), 1);
+    // A caller that waits for the fetchers gets every block, whatever the share.
+    frames_to_full_detail(&scene, &tight, &cam);
+}
+
 /// The nice value in a task's `stat` (field 19; the command name before it may hold spaces,
 /// so the fields are counted from its closing parenthesis).
 #[cfg(target_os = "linux")]

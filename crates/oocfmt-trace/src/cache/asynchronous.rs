@@ -22,6 +22,7 @@ use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError, RwLock};
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 use rustc_hash::FxHashMap as HashMap;
 
@@ -40,7 +41,7 @@ const SHARDS: usize = 16;
 pub const DEFAULT_READ_AHEAD: u8 = 2;
 
 /// How an asynchronous cache fetches, evicts and prefetches.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AsyncOptions {
     /// Fetcher threads (at least one is started).
     pub fetchers: usize,
@@ -53,6 +54,12 @@ pub struct AsyncOptions {
     /// above 0 the render threads get the CPU first, so decoding a burst of blocks slows a frame
     /// down less, and blocks arrive later.
     pub fetcher_nice: u8,
+    /// CPU time the fetchers may spend reading and decoding blocks per frame, as a share of
+    /// the last frame's duration (from one step between frames to the next): a fetcher starts
+    /// a block only while less was spent since the last step, so a burst of requests is
+    /// spread over frames instead of slowing one down (a frame may go over by a block per
+    /// fetcher). `f64::INFINITY`: no limit.
+    pub fetch_share: f64,
     /// Decoded bytes look-ahead prefetching may load per frame ([`AsyncCache::prefetch`]); a
     /// fetcher starts a prefetch only while less than this was loaded since the last call, so
     /// a frame may go over by a block per fetcher.
@@ -67,6 +74,7 @@ impl Default for AsyncOptions {
             fetch_order: FetchOrder::Afra,
             eviction: Eviction::Lru,
             fetcher_nice: DEFAULT_FETCHER_NICE,
+            fetch_share: DEFAULT_FETCH_SHARE,
             prefetch_bytes: 0,
         }
     }
@@ -77,6 +85,30 @@ impl Default for AsyncOptions {
 /// render threads leave between frames; at 19 it got so little that a 10M-triangle walkthrough
 /// never converged (README, "Walkthroughs").
 pub const DEFAULT_FETCHER_NICE: u8 = 10;
+
+/// The fetchers' default CPU time per frame, as a share of the last frame's duration. The
+/// fetchers' nice value alone did not keep bursts out of the frames: on 2 cores, the 100M
+/// Mandelbulb walkthrough of README (PoE 3, 512 MiB) had cold frames of 1.91–2.26 times the
+/// steady ones without a limit, 1.40–1.65 at 0.5, 1.34–1.42 at 0.35 and 1.26–1.38 at 0.25; the
+/// 10M walkthrough (PoE 1) then reached full detail by its last frames at 0.5 but not within
+/// them at 0.25.
+pub const DEFAULT_FETCH_SHARE: f64 = 0.5;
+
+/// CPU time the calling thread has used, where the system tells (Linux); else `None`, and
+/// fetch budgets count wall time instead.
+#[cfg(target_os = "linux")]
+fn thread_cpu_time() -> Option<Duration> {
+    let t = rustix::time::clock_gettime(rustix::time::ClockId::ThreadCPUTime);
+    Some(Duration::new(
+        u64::try_from(t.tv_sec).ok()?,
+        u32::try_from(t.tv_nsec).ok()?,
+    ))
+}
+
+#[cfg(not(target_os = "linux"))]
+fn thread_cpu_time() -> Option<Duration> {
+    None
+}
 
 /// Lowers the calling thread's priority to `nice`; false where the system refused or cannot.
 /// On Linux the nice value belongs to the thread, not the process.
@@ -174,6 +206,11 @@ struct Shared {
     /// [`AsyncCache::prefetch`].
     prefetch_bytes: u64,
     prefetch_spent: AtomicU64,
+    /// The fetchers' share of a frame ([`AsyncOptions::fetch_share`]), the nanoseconds of
+    /// fetching it allows until the next step (`u64::MAX`: no limit) and those spent since.
+    fetch_share: f64,
+    fetch_allowed_ns: AtomicU64,
+    fetch_spent_ns: AtomicU64,
     /// Fetchers whose lower priority the system refused.
     refused: AtomicUsize,
 }
@@ -197,6 +234,8 @@ struct Book {
     clock: Clock,
     /// The range of the last frame's Wald priorities.
     wald_range: Option<Range>,
+    /// When the last step between frames (or the cache's opening) ended.
+    last_step: Option<Instant>,
 }
 
 pub struct AsyncCache {
@@ -256,6 +295,9 @@ impl AsyncCache {
             read_ahead: opts.read_ahead,
             prefetch_bytes: opts.prefetch_bytes,
             prefetch_spent: AtomicU64::new(0),
+            fetch_share: opts.fetch_share,
+            fetch_allowed_ns: AtomicU64::new(u64::MAX),
+            fetch_spent_ns: AtomicU64::new(0),
             refused: AtomicUsize::new(0),
         });
         let nice = opts.fetcher_nice;
@@ -295,6 +337,7 @@ impl AsyncCache {
             let mut book = lock(&cache.book);
             cache.publish(&mut book, 0);
         }
+        lock(&cache.book).last_step = Some(Instant::now());
         cache
     }
 
@@ -306,6 +349,9 @@ impl AsyncCache {
     /// that want a still image to converge (tests, a single-frame render); render threads
     /// never call it.
     pub fn wait_for_fetchers(&self) {
+        // A caller that waits wants every block now: no per-frame limit until the next step.
+        self.shared.fetch_allowed_ns.store(u64::MAX, Relaxed);
+        self.shared.work.notify_all();
         let mut q = lock(&self.shared.queue);
         while !q.shutdown && (!q.ids.is_empty() || q.in_flight > 0 || self.prefetch_waits(&q)) {
             q = self
@@ -567,6 +613,13 @@ impl Shared {
             .map_or(0, |e| 3 * u64::from(e.raw_length))
     }
 
+    /// Whether this frame's fetch budget allows starting another block. The first block after
+    /// a step always may, so every frame brings something however short it was.
+    fn fetch_room(&self) -> bool {
+        let spent = self.fetch_spent_ns.load(Relaxed);
+        spent == 0 || spent < self.fetch_allowed_ns.load(Relaxed)
+    }
+
     /// Whether this frame's prefetch budget allows starting another prefetch.
     fn prefetch_room(&self) -> bool {
         self.prefetch_spent.load(Relaxed) < self.prefetch_bytes
@@ -581,8 +634,12 @@ fn fetch_loop(s: &Shared) {
                 if q.shutdown {
                     return;
                 }
-                // Demand first, then prefetches within the frame's budget, then reading ahead
-                // into free room.
+                // Within the frame's fetch budget: demand first, then prefetches within their
+                // own budget, then reading ahead into free room.
+                if !s.fetch_room() {
+                    q = s.work.wait(q).unwrap_or_else(PoisonError::into_inner);
+                    continue;
+                }
                 if let Some(id) = q.ids.pop() {
                     q.in_flight += 1;
                     break (id, s.read_ahead, Why::Demand);
@@ -601,7 +658,14 @@ fn fetch_loop(s: &Shared) {
                 q = s.work.wait(q).unwrap_or_else(PoisonError::into_inner);
             }
         };
+        let (wall, cpu) = (Instant::now(), thread_cpu_time());
         let outcome = s.load(id, why);
+        let spent = match (thread_cpu_time(), cpu) {
+            (Some(after), Some(before)) => after.saturating_sub(before),
+            _ => wall.elapsed(),
+        };
+        s.fetch_spent_ns
+            .fetch_add(u64::try_from(spent.as_nanos()).unwrap_or(u64::MAX), Relaxed);
         if let (Why::Prefetch, Outcome::Loaded(d)) = (why, &outcome) {
             s.prefetch_spent.fetch_add(d.bytes() as u64, Relaxed);
         }
@@ -650,6 +714,19 @@ impl BlockCache for AsyncCache {
     fn end_frame(&self) {
         let mut book = lock(&self.book);
         let frame = self.frame.load(Relaxed);
+        // The next frame's fetch budget, from this one's duration.
+        let now = Instant::now();
+        let last = book.last_step.replace(now).unwrap_or(now);
+        let allowed = self.shared.fetch_share * (now - last).as_nanos() as f64;
+        self.shared.fetch_spent_ns.store(0, Relaxed);
+        self.shared.fetch_allowed_ns.store(
+            if allowed >= u64::MAX as f64 {
+                u64::MAX
+            } else {
+                allowed as u64
+            },
+            Relaxed,
+        );
         let root = self.shared.scene.metadata().root.map(|r| r.block);
         // What the frame wanted, before publishing: a block that arrived during the frame
         // still counts as wanted by it.
