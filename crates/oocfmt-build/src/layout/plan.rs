@@ -67,14 +67,6 @@ pub(crate) struct Treelet {
     pub spans: Vec<usize>,
 }
 
-impl Treelet {
-    /// The span of node `id` of this treelet.
-    pub fn span(&self, id: NodeId) -> Option<usize> {
-        let k = self.nodes.iter().position(|&n| n == id)?;
-        self.spans.get(k).copied()
-    }
-}
-
 #[derive(Clone, Debug, Default)]
 pub(crate) struct PlannedBlock {
     pub level: u16,
@@ -338,7 +330,7 @@ fn expand(
                 .collect()
         })
         .unwrap_or_default();
-    let mut units = Vec::new();
+    let mut parents = Vec::new();
     for n in lods {
         if wants(n) {
             let id = u32::try_from(plan.lod_order.len())
@@ -358,9 +350,9 @@ fn expand(
             }
             continue;
         }
-        units.push((n, tree.children(n)));
+        parents.push((n, tree.children(n)));
     }
-    Ok(units)
+    Ok(parents)
 }
 
 /// The units of child treelets under `parents`, in order: their treelets are collected in
@@ -435,9 +427,8 @@ pub(crate) fn is_lod_depth(depth: u32, height: u8) -> bool {
 }
 
 /// Records every node's cell and role and the tree's node levels in `levels`; returns the LOD
-/// nodes in arena order. An inner node at
-/// scene depth `d` (`offset` is the depth of this tree's root) is a LOD node when
-/// [`is_lod_depth`] says so.
+/// nodes in arena order. An inner node at scene depth `d` (`offset` is the depth of this tree's
+/// root) is a LOD node when [`is_lod_depth`] says so.
 fn classify(
     tree: &KdTree,
     root: NodeId,

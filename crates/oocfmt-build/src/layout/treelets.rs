@@ -28,6 +28,7 @@ pub(crate) fn encode_treelets(
             tree,
             plan,
             treelet,
+            at: 0,
             leaves,
             first_triangle_block,
         };
@@ -42,8 +43,9 @@ struct Encoder<'a> {
     w: TreeletBlockWriter,
     tree: &'a KdTree,
     plan: &'a TreePlan,
-    /// The treelet being written.
+    /// The treelet being written, and the index in its preorder `nodes` of the next node.
     treelet: &'a Treelet,
+    at: usize,
     leaves: &'a [Option<LeafRef>],
     first_triangle_block: u32,
 }
@@ -52,6 +54,15 @@ impl Encoder<'_> {
     /// Writes `id` and, for a basic node, its subtree; recursion is bounded by the treelet
     /// height.
     fn node(&mut self, id: NodeId) -> Result<(), LayoutError> {
+        // Nodes are written in the preorder the plan listed them in, so a basic node's low
+        // child is the next one and its span is known.
+        let k = self.at;
+        if self.treelet.nodes.get(k) != Some(&id) {
+            return Err(LayoutError::Internal(
+                "a treelet's nodes are written out of their planned order",
+            ));
+        }
+        self.at += 1;
         let info = self.plan.info(id);
         let pos = self.w.next_node_pos();
         match (info.role, self.tree.node(id)) {
@@ -129,9 +140,11 @@ impl Encoder<'_> {
             ) => {
                 let left_at = pos + oocfmt::records::NODE_BASIC_LEN;
                 let left_span = match l {
-                    Some(l) => self
+                    Some(_) => self
                         .treelet
-                        .span(l)
+                        .spans
+                        .get(k + 1)
+                        .copied()
                         .ok_or(LayoutError::Internal("a child is outside its treelet"))?,
                     None => 0,
                 };

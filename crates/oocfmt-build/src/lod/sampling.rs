@@ -362,12 +362,7 @@ pub(crate) fn shade(mesh: &Mesh, hit: &Hit, dir: [f64; 3]) -> Option<Shade> {
 
 /// [`shade`] given the hit triangle's corners, which a tracer has at hand: the mesh's own
 /// vertex arrays are then read only for normals and colours.
-pub(crate) fn shade_at(
-    mesh: &Mesh,
-    hit: &Hit,
-    corners: [[f32; 3]; 3],
-    dir: [f64; 3],
-) -> Option<Shade> {
+fn shade_at(mesh: &Mesh, hit: &Hit, corners: [[f32; 3]; 3], dir: [f64; 3]) -> Option<Shade> {
     let t = hit.triangle as usize;
     let p = corners.map(|c| c.map(f64::from));
     let w = [1.0 - hit.u - hit.v, hit.u, hit.v];

@@ -7,7 +7,9 @@
 //! by a second-chance sweep: [`policy`]) and hands the fetchers the new requests ranked by
 //! priority (Áfra's or Wald's). Look-ahead prefetching (Correa et al. 2002,
 //! [`crate::cache::prefetch`]) adds a second queue, served only when no demand fetch waits and
-//! only up to a per-frame budget.
+//! only up to a per-frame budget. All fetching shares a per-frame budget of CPU time, a share
+//! of the last frame's duration ([`AsyncOptions::fetch_share`]), so that a burst of requests
+//! arrives over several frames instead of slowing one down.
 //!
 //! During a frame the table of resident blocks is only read: render threads take a shared
 //! read lock (no writer is ever waiting during a frame) and mark the blocks they use with the
@@ -719,11 +721,12 @@ impl BlockCache for AsyncCache {
         let last = book.last_step.replace(now).unwrap_or(now);
         let allowed = self.shared.fetch_share * (now - last).as_nanos() as f64;
         self.shared.fetch_spent_ns.store(0, Relaxed);
+        // A share of infinity (or NaN) lifts the limit.
         self.shared.fetch_allowed_ns.store(
-            if allowed >= u64::MAX as f64 {
-                u64::MAX
-            } else {
+            if allowed < u64::MAX as f64 {
                 allowed as u64
+            } else {
+                u64::MAX
             },
             Relaxed,
         );
