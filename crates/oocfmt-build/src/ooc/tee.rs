@@ -174,23 +174,19 @@ mod tests {
 
     #[test]
     fn a_tee_over_its_limit_gives_no_mesh() {
-        let mut tee = MeshTee::spawn(10);
-        for _ in 0..11 {
-            tee.push(InputTriangle::new([
-                [0.0; 3],
-                [1.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-            ]));
-        }
-        assert!(tee.finish(Vec::new()).is_none());
-        let mut tee = MeshTee::spawn(10);
-        for _ in 0..10 {
-            tee.push(InputTriangle::new([
-                [0.0; 3],
-                [1.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-            ]));
-        }
+        let filled = |count: usize| {
+            let mut tee = MeshTee::spawn(10);
+            for _ in 0..count {
+                tee.push(InputTriangle::new([
+                    [0.0; 3],
+                    [1.0, 0.0, 0.0],
+                    [0.0, 1.0, 0.0],
+                ]));
+            }
+            tee
+        };
+        assert!(filled(11).finish(Vec::new()).is_none());
+        let tee = filled(10);
         let mesh = tee.finish(Vec::new()).and_then(Result::ok);
         assert_eq!(
             mesh.map(|m| (m.triangles.len(), m.positions.len())),

@@ -40,6 +40,25 @@ pub struct Hit {
     pub v: f64,
 }
 
+/// Keeps `hit` in `best` when it lies in `t0 ..= t1` widened by `eps` and is strictly nearer:
+/// of equally near hits the first one tested stays, which is why every walk over the same
+/// triangles in the same order finds the same hit.
+#[inline]
+pub(crate) fn keep_nearer(best: &mut Option<Hit>, hit: Hit, t0: f64, t1: f64, eps: f64) {
+    if hit.t >= t0 - eps && hit.t <= t1 + eps && best.is_none_or(|b| hit.t < b.t) {
+        *best = Some(hit);
+    }
+}
+
+/// The box of a triangle's corners, `(low, high)`.
+#[inline]
+pub(crate) fn corner_box(c: &[[f32; 3]; 3]) -> ([f32; 3], [f32; 3]) {
+    (
+        std::array::from_fn(|a| c[0][a].min(c[1][a]).min(c[2][a])),
+        std::array::from_fn(|a| c[0][a].max(c[1][a]).max(c[2][a])),
+    )
+}
+
 /// Möller–Trumbore in f64: `(t, u, v)` where the ray's line meets the triangle, edges
 /// included, or `None` when it misses or runs parallel to its plane. `t` may be negative.
 pub fn intersect_triangle(ray: &Ray, p: [[f64; 3]; 3]) -> Option<(f64, f64, f64)> {
@@ -138,14 +157,8 @@ pub fn first_hit_of(triangles: &[Prepared], ray: &Ray, t0: f64, t1: f64, eps: f6
             continue;
         }
         if let Some((t, u, v)) = p.intersect(ray) {
-            if t >= t0 - eps && t <= t1 + eps && best.is_none_or(|b| t < b.t) {
-                best = Some(Hit {
-                    t,
-                    triangle: p.triangle,
-                    u,
-                    v,
-                });
-            }
+            let triangle = p.triangle;
+            keep_nearer(&mut best, Hit { t, triangle, u, v }, t0, t1, eps);
         }
     }
     best
@@ -312,10 +325,8 @@ impl<'a> Tracer<'a> {
                             let Some(c) = self.corners(t) else {
                                 continue;
                             };
-                            if !(0..3).all(|a| {
-                                c[0][a].max(c[1][a]).max(c[2][a]) >= reach_lo[a]
-                                    && c[0][a].min(c[1][a]).min(c[2][a]) <= reach_hi[a]
-                            }) {
+                            let (lo, hi) = corner_box(&c);
+                            if !(0..3).all(|a| hi[a] >= reach_lo[a] && lo[a] <= reach_hi[a]) {
                                 continue;
                             }
                             let p = c.map(|p| p.map(f64::from));
@@ -324,14 +335,13 @@ impl<'a> Tracer<'a> {
                             else {
                                 continue;
                             };
-                            if th >= t0 - eps && th <= t1 + eps && best.is_none_or(|b| th < b.t) {
-                                best = Some(Hit {
-                                    t: th,
-                                    triangle: t,
-                                    u,
-                                    v,
-                                });
-                            }
+                            let hit = Hit {
+                                t: th,
+                                triangle: t,
+                                u,
+                                v,
+                            };
+                            keep_nearer(&mut best, hit, t0, t1, eps);
                         }
                         if best.is_some_and(|b| b.t <= tmax + eps) {
                             return best;

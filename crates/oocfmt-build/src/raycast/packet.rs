@@ -5,7 +5,7 @@
 //! the rays that reach it instead of once per ray, and each ray still meets the same
 //! triangles in the same order as [`Tracer::first_hit`] alone, so it finds the same hit.
 
-use super::{flat_reach, moller_trumbore, sub, Hit, Ray, Tracer};
+use super::{corner_box, flat_reach, keep_nearer, moller_trumbore, sub, Hit, Ray, Tracer};
 use crate::kdtree::{KdNode, NodeId};
 
 /// The most rays one call takes: one bit each in a mask.
@@ -108,10 +108,7 @@ impl Tracer<'_> {
                             let Some(c) = self.corners(t) else {
                                 continue;
                             };
-                            let hi: [f32; 3] =
-                                std::array::from_fn(|a| c[0][a].max(c[1][a]).max(c[2][a]));
-                            let lo: [f32; 3] =
-                                std::array::from_fn(|a| c[0][a].min(c[1][a]).min(c[2][a]));
+                            let (lo, hi) = corner_box(&c);
                             // Most triangles of a leaf lie beside every ray: find the rays
                             // whose reach meets the triangle's box before any f64 work.
                             let mut near = 0u64;
@@ -133,15 +130,13 @@ impl Tracer<'_> {
                                 let Some((th, u, v)) = moller_trumbore(ray, p[0], e1, e2) else {
                                     continue;
                                 };
-                                if th >= t0 - eps && th <= t1 + eps && best.is_none_or(|b| th < b.t)
-                                {
-                                    *best = Some(Hit {
-                                        t: th,
-                                        triangle: t,
-                                        u,
-                                        v,
-                                    });
-                                }
+                                let hit = Hit {
+                                    t: th,
+                                    triangle: t,
+                                    u,
+                                    v,
+                                };
+                                keep_nearer(best, hit, t0, t1, eps);
                             }
                         }
                         for k in bits(mask) {
