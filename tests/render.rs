@@ -271,6 +271,9 @@ fn render_path_accuracy_is_full_for_blocking_at_poe_0_and_partial_for_a_cold_asy
     for k in ["blocks_missed", "blocks_prefetched", "blocks_prefetch_used"] {
         assert!(first[k].as_u64().is_some(), "{k} in {first}");
     }
+    // The cold walk decodes blocks, so its fetchers spent CPU time on them.
+    let fetch_ms: f64 = cold.iter().filter_map(|f| f["fetch_cpu_ms"].as_f64()).sum();
+    assert!(fetch_ms > 0.0, "{fetch_ms}");
     // Without --accuracy there is no such figure.
     let plain = walk_figures(d, "plain", &[]);
     assert!(plain[0].get("accuracy").is_none());

@@ -5,15 +5,20 @@ budget a tenth of the container; or, with --strategies, the cache strategies sid
 Generates and converts a Mandelbulb with the release binary (or takes --model), writes a path
 that approaches the model while orbiting it, and renders it
 
-  1. cold, async cache (a fresh process: only the root block and the proxies are resident);
-  2. warm: the same path twice in one process, the second pass timed (everything it wants is
-     resident, nothing is fetched);
+  1. cold, async cache, --runs times (each a fresh process: only the root block and the
+     proxies are resident);
+  2. warm: the same path --warm-fill + --warm-passes times in one process, fetching without a
+     per-frame limit; the warm time of a frame is the median of the timed passes (after the
+     fill passes every block the walk wants is resident and nothing is fetched, if the cache
+     holds the walk: the figures say how many blocks the timed passes loaded);
   3. cold with --cache-mb a tenth of the container's size.
 
-Prints per frame the cold and warm milliseconds (the frame's rays plus the cache's step after
-it), their ratio, the share of pixels still coarse (ending on a voxel or proxy where the warm
-frame shows triangles), blocks loaded, the working set; then the summary: the largest cold/warm
-ratio, the frame from which the cold images equal the warm ones, and the small budget's peak.
+Prints per frame the warm milliseconds (the frame's rays plus the cache's step after it), each
+cold run's milliseconds and ratio to the warm ones, the share of pixels still coarse (ending on
+a voxel or proxy where the warm frame shows triangles), blocks loaded, the working set; then per
+cold run the largest cold/warm ratio and the frame from which the cold images equal the warm
+ones; how far each warm pass strays from the warm median (the same ratio, measured where
+nothing is fetched: the spread of a frame's time on the machine); and the small budget's peak.
 With --strategies: the same cold walkthrough, for each --cache-mb of --strategy-mb, with each
 cache strategy (fetch order Afra or Wald, eviction LRU or second chance, look-ahead prefetching
 off or on) and --accuracy: per strategy the medians over the frames of the frame time (the
@@ -193,7 +198,13 @@ def main():
     p.add_argument("--size", default="1024x768")
     p.add_argument("--poe", default="1")
     p.add_argument("--cache-mb", type=int, default=2048)
-    p.add_argument("--fetchers", type=int, default=2)
+    p.add_argument("--fetchers", type=int, help="fetcher threads (default: render's, half the cores)")
+    p.add_argument("--runs", type=int, default=3, help="cold runs, each a fresh process")
+    p.add_argument("--warm-passes", type=int, default=3,
+                   help="timed warm passes (after --warm-fill passes); warm = their median")
+    p.add_argument("--warm-fill", type=int, default=3,
+                   help="untimed passes that fill the cache before the warm ones: a moving camera "
+                        "passes blocks by before they arrive, so one pass leaves some behind")
     p.add_argument("--render-args", default="", help="more `oocfmt render` flags for every run, "
                    "space-separated, e.g. '--fetch-priority normal'")
     p.add_argument("--dir", default=os.path.join(ROOT, "target", "bench-walk"))
@@ -223,47 +234,77 @@ def main():
     cams = path_cameras(lo, hi, a.frames)
     cams += [cams[-1]] * a.hold
     frames = len(cams)
-    common = ["--size", a.size, "--poe", a.poe, "--fetchers", str(a.fetchers)] + a.render_args.split()
+    common = ["--size", a.size, "--poe", a.poe] + a.render_args.split()
+    if a.fetchers:
+        common += ["--fetchers", str(a.fetchers)]
     if a.strategies:
         compare_strategies(a, model, cams, common, size_mb)
         return
     with tempfile.TemporaryDirectory(dir=a.dir) as work:
-        cold = render_path(model, cams, work, "cold", common + ["--cache-mb", str(a.cache_mb)])
-        both = render_path(model, cams + cams, work, "warm", common + ["--cache-mb", str(a.cache_mb)])
-        warm = both[frames:]
+        colds = [render_path(model, cams, work, f"cold{r}", common + ["--cache-mb", str(a.cache_mb)])
+                 for r in range(a.runs)]
+        # The warm process fetches without a per-frame limit, so that its first pass leaves
+        # every block the walk wants resident (a cache that holds the walk then fetches
+        # nothing in the timed passes).
+        unlimited = [] if "--fetch-share" in common else ["--fetch-share", "inf"]
+        fill = a.warm_fill
+        passes = render_path(model, cams * (fill + a.warm_passes), work, "warm",
+                             common + ["--cache-mb", str(a.cache_mb)] + unlimited)
+        warm_passes = [passes[k * frames:(k + 1) * frames] for k in range(fill, fill + a.warm_passes)]
         small_mb = max(1, int(size_mb / 10))
         small = render_path(model, cams, work, "small", common + ["--cache-mb", str(small_mb)])
-        equal = [same_png(c["file"], w["file"]) for c, w in zip(cold, warm)]
+        warm_pngs = [f["file"] for f in warm_passes[0]]
+        equal = [[same_png(c["file"], w) for c, w in zip(cold, warm_pngs)] for cold in colds]
 
     def total(f):
         return f["ms"] + f["step_ms"]
 
+    # The warm frame time of a camera: the median of its timed warm passes. The same rule
+    # applied to each warm pass shows how far one frame's time strays on this machine.
+    warm = [statistics.median(total(p[i]) for p in warm_passes) for i in range(frames)]
+    noise = [max(total(p[i]) / warm[i] for i in range(frames)) for p in warm_passes]
+    warm_loaded = [sum(f["blocks_loaded"] for f in p) for p in warm_passes]
+    ratios = [[total(c) / w for c, w in zip(cold, warm)] for cold in colds]
+    # A frame's cold time over the runs: their median drops a spike one run had (the warm
+    # passes show the machine makes those with nothing fetched), not a stall every run has.
+    median_ratios = [statistics.median(total(c[i]) for c in colds) / warm[i] for i in range(frames)]
+    cold = colds[0]
     print(f"model {model}: {size_mb:.1f} MiB; {a.frames} frames + {a.hold} still, {a.size}, --poe {a.poe}, "
-          f"{a.fetchers} fetchers, render threads: all cores ({cold[0]['stats']['threads']})")
-    print("coarse: pixels ending on a voxel or proxy (at --poe > 0 the warm frames have some too); "
-          "=warm: the cold frame's image equals the warm one's")
-    print(f"{'frame':>5} {'cold ms':>8} {'warm ms':>8} {'ratio':>6} {'coarse %':>8} {'warm %':>6} {'loaded':>7} "
-          f"{'MiB':>7} {'=warm':>5} | {'small ms':>8} {'coarse %':>8} {'MiB':>6}")
+          f"--cache-mb {a.cache_mb}, fetchers: {a.fetchers or 'default'}, render threads: all cores "
+          f"({cold[0]['stats']['threads']}); {a.runs} cold runs, warm = median of {a.warm_passes} passes")
+    print("ratio: the cold frame (rays + the cache's step) over the warm median; fetch: the fetchers' CPU "
+          "ms between the steps around the frame; coarse: pixels ending on a voxel or proxy (at --poe > 0 "
+          "the warm frames have some too), run 1; =warm: the cold frame's image equals the warm one's, per run")
+    print(f"{'frame':>5} {'warm ms':>8} {'cold ms, ratio, fetch per run':>{18 * a.runs}} {'coarse %':>8} {'warm %':>6} "
+          f"{'loaded':>7} {'MiB':>7} {'=warm':>{4 * a.runs}} | {'small ms':>8} {'coarse %':>8} {'MiB':>6}")
     rays = cold[0]["stats"]["rays"]
-    ratios = []
-    for i, (c, w, s) in enumerate(zip(cold, warm, small)):
-        ratio = total(c) / total(w)
-        ratios.append(ratio)
-        print(f"{i:5} {total(c):8.1f} {total(w):8.1f} {ratio:6.2f} "
+    for i in range(frames):
+        c, w, s = cold[i], warm_passes[0][i], small[i]
+        per_run = " ".join(f"{total(colds[r][i]):6.1f} {ratios[r][i]:4.2f} {colds[r][i].get('fetch_cpu_ms', 0):5.1f}"
+                           for r in range(a.runs))
+        same = " ".join(f"{'yes' if equal[r][i] else 'no':>3}" for r in range(a.runs))
+        print(f"{i:5} {warm[i]:8.1f} {per_run:>{18 * a.runs}} "
               f"{100 * c['coarse_pixels'] / rays:8.2f} {100 * w['coarse_pixels'] / rays:6.2f} {c['blocks_loaded']:7} "
-              f"{c['working_set_mb']:7.1f} {'yes' if equal[i] else 'no':>5} | "
+              f"{c['working_set_mb']:7.1f} {same:>{4 * a.runs}} | "
               f"{total(s):8.1f} {100 * s['coarse_pixels'] / rays:8.2f} {s['working_set_mb']:6.1f}")
-    first_equal = next((i for i in range(frames) if all(equal[i:])), None)
+    for r in range(a.runs):
+        worst = max(range(frames), key=lambda i: ratios[r][i])
+        first_equal = next((i for i in range(frames) if all(equal[r][i:])), None)
+        print(f"cold run {r + 1}: worst frame {ratios[r][worst]:.2f}x warm (frame {worst}), median "
+              f"{statistics.median(ratios[r]):.2f}; "
+              + (f"images equal the warm ones from frame {first_equal}" if first_equal is not None
+                 else f"images never all equal the warm ones (last frame {100 * colds[r][-1]['coarse_pixels'] / rays:.2f} "
+                      f"% coarse against {100 * warm_passes[0][-1]['coarse_pixels'] / rays:.2f} %)"))
+    worst = max(range(frames), key=lambda i: median_ratios[i])
+    print(f"median of the {a.runs} cold runs per frame: worst frame {median_ratios[worst]:.2f}x warm (frame {worst})")
+    print(f"warm: median frame {statistics.median(warm):.1f} ms; each warm pass against the median: worst frame "
+          + ", ".join(f"{n:.2f}x" for n in noise) + " (the spread of one frame's time on this machine)"
+          + f"; blocks the timed warm passes loaded: {', '.join(map(str, warm_loaded))}"
+          + ("" if sum(warm_loaded) < frames else " (the cache does not hold the walk: warm means steady)"))
     peak = max(f["stats"]["cache"]["peak_bytes_resident"] for f in small) / 2**20
-    worst = max(range(frames), key=lambda i: ratios[i])
-    print(f"cold/warm frame time: max {ratios[worst]:.2f} (frame {worst}), median {statistics.median(ratios):.2f}; "
-          f"warm median {statistics.median(total(w) for w in warm):.1f} ms")
-    print(f"cold frames equal the warm ones from frame {first_equal}" if first_equal is not None
-          else "cold frames never all equal the warm ones")
     print(f"--cache-mb {small_mb} ({size_mb / small_mb:.1f}x smaller than the container): peak "
           f"{peak:.1f} MiB held, median frame {statistics.median(total(s) for s in small):.1f} ms, "
           f"coarse pixels in the last frame {100 * small[-1]['coarse_pixels'] / rays:.2f} %")
-
 
 if __name__ == "__main__":
     main()

@@ -72,9 +72,10 @@ pub struct Args {
     /// leave)
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_FETCHER_NICE, value_parser = clap::value_parser!(u8).range(0..=19))]
     pub fetcher_nice: u8,
-    /// Async cache: CPU time the fetchers may spend reading and decoding blocks per frame, as a
-    /// share of the last frame's duration (0.5: half a frame; `inf`: no limit). A burst of
-    /// requests then arrives over several frames instead of slowing one down
+    /// Async cache: CPU time the fetchers may spend reading and decoding blocks while a frame
+    /// renders, as a share of the last frame's duration (0.5: half a frame; `inf`: no limit).
+    /// A burst of requests then arrives over several frames instead of slowing one down; while
+    /// a walkthrough writes a frame's files the fetchers work without this limit
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_FETCH_SHARE, value_parser = parse_share)]
     pub fetch_share: f64,
     /// Walkthroughs with the async cache: look-ahead prefetching (after iWalk): after each
@@ -364,6 +365,9 @@ struct FrameFigures {
     /// that this frame used for the first time.
     blocks_prefetched: u64,
     blocks_prefetch_used: u64,
+    /// The fetchers' CPU time reading and decoding blocks between the step before this frame
+    /// and the one after it (asynchronous cache).
+    fetch_cpu_ms: f64,
     /// With --accuracy: the share of pixels equal to the full-detail reference.
     #[serde(skip_serializing_if = "Option::is_none")]
     accuracy: Option<Accuracy>,
@@ -405,6 +409,7 @@ impl FrameFigures {
             blocks_prefetch_used: c
                 .blocks_prefetch_used
                 .saturating_sub(before.blocks_prefetch_used),
+            fetch_cpu_ms: (c.fetch_cpu_ms - before.fetch_cpu_ms).max(0.0),
             accuracy: None,
             missing_blocks: c.missing_blocks.len(),
             stats,
@@ -678,6 +683,10 @@ fn walkthrough(
             }
             None => 0.0,
         };
+        // Writing the frame's files renders nothing: the fetchers may use that time freely.
+        if let Cache::Async(ac) = cache {
+            ac.idle();
+        }
         let file = walk::frame_file(&a.output, i);
         write_png(&file, image.width, image.height, &image.rgb).map_err(cli_error)?;
         if let Some(d) = &a.depth_out {

@@ -387,7 +387,7 @@ fn reading_ahead_fills_a_cold_view_in_fewer_frames_and_only_into_free_room() {
 }
 
 #[test]
-fn the_fetch_share_spreads_a_burst_over_frames_and_waiting_lifts_it() {
+fn the_fetch_share_spreads_a_burst_over_frames_and_idling_or_waiting_lifts_it() {
     let dir = tempfile::tempdir().unwrap();
     // Small blocks: each level of the view's tree spreads over many of them.
     let path = uncompressed_mandelbulb(dir.path(), 20_000);
@@ -423,6 +423,20 @@ fn the_fetch_share_spreads_a_burst_over_frames_and_waiting_lifts_it() {
     // A share of next to nothing: one block per frame (the first after a step always starts).
     let tight = cache_with(1e-9);
     assert_eq!(largest_burst(&tight), 1);
+    // While the caller idles between frames the fetchers are not limited: at the same share,
+    // the step after an idle spell publishes what they fetched meanwhile.
+    let idling = cache_with(1e-9);
+    let mut after_idle = 0;
+    for _ in 0..8 {
+        render(&scene, &idling, &cam, &POE0).unwrap();
+        idling.end_frame();
+        idling.idle();
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        let before = idling.stats().blocks_loaded;
+        idling.end_frame();
+        after_idle = after_idle.max(idling.stats().blocks_loaded - before);
+    }
+    assert!(after_idle > 1, "{after_idle}");
     // A caller that waits for the fetchers gets every block, whatever the share.
     frames_to_full_detail(&scene, &tight, &cam);
 }

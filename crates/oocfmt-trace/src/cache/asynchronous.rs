@@ -7,9 +7,11 @@
 //! by a second-chance sweep: [`policy`]) and hands the fetchers the new requests ranked by
 //! priority (Áfra's or Wald's). Look-ahead prefetching (Correa et al. 2002,
 //! [`crate::cache::prefetch`]) adds a second queue, served only when no demand fetch waits and
-//! only up to a per-frame budget. All fetching shares a per-frame budget of CPU time, a share
-//! of the last frame's duration ([`AsyncOptions::fetch_share`]), so that a burst of requests
-//! arrives over several frames instead of slowing one down.
+//! only up to a per-frame budget. Fetching while a frame renders shares a per-frame budget of CPU
+//! time, a share of the last frame's duration ([`AsyncOptions::fetch_share`]), so that a burst
+//! of requests arrives over several frames instead of slowing one down; between frames, once
+//! the caller says it will not render for a while ([`AsyncCache::idle`]), the fetchers work
+//! without that limit.
 //!
 //! During a frame the table of resident blocks is only read: render threads take a shared
 //! read lock (no writer is ever waiting during a frame) and mark the blocks they use with the
@@ -56,11 +58,12 @@ pub struct AsyncOptions {
     /// above 0 the render threads get the CPU first, so decoding a burst of blocks slows a frame
     /// down less, and blocks arrive later.
     pub fetcher_nice: u8,
-    /// CPU time the fetchers may spend reading and decoding blocks per frame, as a share of
-    /// the last frame's duration (from one step between frames to the next): a fetcher starts
-    /// a block only while less was spent since the last step, so a burst of requests is
-    /// spread over frames instead of slowing one down (a frame may go over by a block per
-    /// fetcher). `f64::INFINITY`: no limit.
+    /// CPU time the fetchers may spend reading and decoding blocks while a frame renders, as a
+    /// share of the last frame's duration (from its first block lookup to the step after it):
+    /// a fetcher starts a block only while less was spent since the last step, so a burst of
+    /// requests is spread over frames instead of slowing one down (a frame may go over by a
+    /// block per fetcher). Blocks started while the caller is idle ([`AsyncCache::idle`]) do
+    /// not count. `f64::INFINITY`: no limit.
     pub fetch_share: f64,
     /// Decoded bytes look-ahead prefetching may load per frame ([`AsyncCache::prefetch`]); a
     /// fetcher starts a prefetch only while less than this was loaded since the last call, so
@@ -213,6 +216,15 @@ struct Shared {
     fetch_share: f64,
     fetch_allowed_ns: AtomicU64,
     fetch_spent_ns: AtomicU64,
+    /// Set by [`AsyncCache::idle`], cleared by the next frame's first block lookup: no frame
+    /// is rendering, so fetching costs no frame any time.
+    idle: AtomicBool,
+    /// When the frame being rendered started (its first lookup after an idle spell, else the
+    /// step before it), in nanoseconds since `epoch`.
+    frame_start_ns: AtomicU64,
+    epoch: Instant,
+    /// Every nanosecond of fetching since the cache opened.
+    fetch_total_ns: AtomicU64,
     /// Fetchers whose lower priority the system refused.
     refused: AtomicUsize,
 }
@@ -236,8 +248,6 @@ struct Book {
     clock: Clock,
     /// The range of the last frame's Wald priorities.
     wald_range: Option<Range>,
-    /// When the last step between frames (or the cache's opening) ended.
-    last_step: Option<Instant>,
 }
 
 pub struct AsyncCache {
@@ -300,6 +310,10 @@ impl AsyncCache {
             fetch_share: opts.fetch_share,
             fetch_allowed_ns: AtomicU64::new(u64::MAX),
             fetch_spent_ns: AtomicU64::new(0),
+            idle: AtomicBool::new(false),
+            frame_start_ns: AtomicU64::new(0),
+            epoch: Instant::now(),
+            fetch_total_ns: AtomicU64::new(0),
             refused: AtomicUsize::new(0),
         });
         let nice = opts.fetcher_nice;
@@ -339,7 +353,10 @@ impl AsyncCache {
             let mut book = lock(&cache.book);
             cache.publish(&mut book, 0);
         }
-        lock(&cache.book).last_step = Some(Instant::now());
+        cache
+            .shared
+            .frame_start_ns
+            .store(cache.shared.now_ns(), Relaxed);
         cache
     }
 
@@ -364,8 +381,24 @@ impl AsyncCache {
         }
     }
 
+    /// Says that the caller will not render until its next frame (it writes an image, waits
+    /// for the display, reads input): until that frame's first block lookup the fetchers work
+    /// without the per-frame limit, and what they spend does not count against the frame.
+    /// Render threads never call it; a walkthrough calls it after each step.
+    pub fn idle(&self) {
+        self.shared.idle.store(true, Relaxed);
+        self.shared.work.notify_all();
+    }
+
     fn lookup(&self, id: u32) -> Option<Data> {
         self.lookups.fetch_add(1, Relaxed);
+        // A load first: the flag is set once per frame at most, so most lookups leave its
+        // cache line shared.
+        if self.shared.idle.load(Relaxed) && self.shared.idle.swap(false, Relaxed) {
+            self.shared
+                .frame_start_ns
+                .store(self.shared.now_ns(), Relaxed);
+        }
         let table = self.table.read().unwrap_or_else(PoisonError::into_inner);
         let r = table.get(&id)?;
         let frame = self.frame.load(Relaxed);
@@ -616,10 +649,15 @@ impl Shared {
     }
 
     /// Whether this frame's fetch budget allows starting another block. The first block after
-    /// a step always may, so every frame brings something however short it was.
+    /// a step always may, so every frame brings something however short it was; while the
+    /// caller is idle, any may.
     fn fetch_room(&self) -> bool {
         let spent = self.fetch_spent_ns.load(Relaxed);
-        spent == 0 || spent < self.fetch_allowed_ns.load(Relaxed)
+        spent == 0 || spent < self.fetch_allowed_ns.load(Relaxed) || self.idle.load(Relaxed)
+    }
+
+    fn now_ns(&self) -> u64 {
+        u64::try_from(self.epoch.elapsed().as_nanos()).unwrap_or(u64::MAX)
     }
 
     /// Whether this frame's prefetch budget allows starting another prefetch.
@@ -661,13 +699,18 @@ fn fetch_loop(s: &Shared) {
             }
         };
         let (wall, cpu) = (Instant::now(), thread_cpu_time());
+        // A block started while the caller is idle costs no frame.
+        let during_frame = !s.idle.load(Relaxed);
         let outcome = s.load(id, why);
         let spent = match (thread_cpu_time(), cpu) {
             (Some(after), Some(before)) => after.saturating_sub(before),
             _ => wall.elapsed(),
         };
-        s.fetch_spent_ns
-            .fetch_add(u64::try_from(spent.as_nanos()).unwrap_or(u64::MAX), Relaxed);
+        let spent = u64::try_from(spent.as_nanos()).unwrap_or(u64::MAX);
+        if during_frame {
+            s.fetch_spent_ns.fetch_add(spent, Relaxed);
+        }
+        s.fetch_total_ns.fetch_add(spent, Relaxed);
         if let (Why::Prefetch, Outcome::Loaded(d)) = (why, &outcome) {
             s.prefetch_spent.fetch_add(d.bytes() as u64, Relaxed);
         }
@@ -716,10 +759,12 @@ impl BlockCache for AsyncCache {
     fn end_frame(&self) {
         let mut book = lock(&self.book);
         let frame = self.frame.load(Relaxed);
-        // The next frame's fetch budget, from this one's duration.
-        let now = Instant::now();
-        let last = book.last_step.replace(now).unwrap_or(now);
-        let allowed = self.shared.fetch_share * (now - last).as_nanos() as f64;
+        // The next frame's fetch budget, from this one's duration. A caller that never idles
+        // starts its next frame at this step.
+        let now = self.shared.now_ns();
+        let start = self.shared.frame_start_ns.swap(now, Relaxed);
+        self.shared.idle.store(false, Relaxed);
+        let allowed = self.shared.fetch_share * now.saturating_sub(start) as f64;
         self.shared.fetch_spent_ns.store(0, Relaxed);
         // A share of infinity (or NaN) lifts the limit.
         self.shared.fetch_allowed_ns.store(
@@ -809,6 +854,7 @@ impl BlockCache for AsyncCache {
             blocks_pending: pending as u64,
             blocks_dropped: b.dropped,
             blocks_wanted_last_frame: b.wanted_last_frame,
+            fetch_cpu_ms: self.shared.fetch_total_ns.load(Relaxed) as f64 / 1e6,
             missing_blocks: b
                 .missing
                 .iter()

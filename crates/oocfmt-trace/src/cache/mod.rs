@@ -100,6 +100,9 @@ pub struct CacheStats {
     /// Asynchronous cache: distinct blocks the last frame wanted and did not find resident
     /// (blocks missing for good aside). 0: the frame showed everything it asked for.
     pub blocks_wanted_last_frame: u64,
+    /// Asynchronous cache: the fetchers' CPU time spent reading and decoding blocks so far, in
+    /// milliseconds (wall time where the system has no per-thread clock).
+    pub fetch_cpu_ms: f64,
     /// Blocks that could not be read or decoded, by id, with the reason; never retried.
     pub missing_blocks: Vec<MissingBlock>,
 }
