@@ -216,8 +216,8 @@ struct Shared {
     fetch_share: f64,
     fetch_allowed_ns: AtomicU64,
     fetch_spent_ns: AtomicU64,
-    /// Set by [`AsyncCache::idle`], cleared by the next frame's first block lookup: no frame
-    /// is rendering, so fetching costs no frame any time.
+    /// Set by [`AsyncCache::idle`], cleared by the next frame's first block lookup. While it
+    /// is set no frame is rendering, so fetching slows none down.
     idle: AtomicBool,
     /// When the frame being rendered started (its first lookup after an idle spell, else the
     /// step before it), in nanoseconds since `epoch`.
