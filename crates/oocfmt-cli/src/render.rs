@@ -73,9 +73,11 @@ pub struct Args {
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_FETCHER_NICE, value_parser = clap::value_parser!(u8).range(0..=19))]
     pub fetcher_nice: u8,
     /// Async cache: CPU time the fetchers may spend reading and decoding blocks while a frame
-    /// renders, as a share of the last frame's duration (0.5: half a frame; `inf`: no limit).
-    /// A burst of requests then arrives over several frames instead of slowing one down; while
-    /// a walkthrough writes a frame's files the fetchers work without this limit
+    /// renders, as a share of the last frame's duration (`inf`: no limit). A burst of requests
+    /// then arrives over several frames instead of slowing one down: with R cores busy
+    /// rendering, a frame takes at most about 1 / (1 - share / R) times its warm time, 1.14 at
+    /// 0.25 on 2 cores. While a walkthrough writes a frame's files the fetchers work without
+    /// this limit
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_FETCH_SHARE, value_parser = parse_share)]
     pub fetch_share: f64,
     /// Walkthroughs with the async cache: look-ahead prefetching (after iWalk): after each

@@ -91,13 +91,18 @@ impl Default for AsyncOptions {
 /// never converged (README, "Walkthroughs").
 pub const DEFAULT_FETCHER_NICE: u8 = 10;
 
-/// The fetchers' default CPU time per frame, as a share of the last frame's duration. The
-/// fetchers' nice value alone did not keep bursts out of the frames: on 2 cores, the 100M
-/// Mandelbulb walkthrough of README (PoE 3, 512 MiB) had cold frames of 1.91–2.26 times the
-/// steady ones without a limit, 1.40–1.65 at 0.5, 1.34–1.42 at 0.35 and 1.26–1.38 at 0.25; the
-/// 10M walkthrough (PoE 1) then reached full detail by its last frames at 0.5 but not within
-/// them at 0.25.
-pub const DEFAULT_FETCH_SHARE: f64 = 0.5;
+/// The fetchers' default CPU time per frame, as a share of the last frame's duration. Fetching
+/// while a frame renders takes its CPU from the render threads, whatever the fetchers' nice
+/// value: with R render threads on R cores, a frame of warm time W that lets the fetchers spend
+/// the share s of its duration F takes F = W + s·F/R, so F = W / (1 − s/R) once the budget is
+/// used up. On 2 cores that is 1.14 W at 0.25 and 1.33 W at 0.5. Per-thread scheduler figures
+/// of the 100M walkthrough of README bear it out: in 6 of its 8 cold frames over 1.3 times the
+/// warm ones the render threads used 1–11 % more CPU than warm, and waited for a core about as
+/// long as the fetcher ran. At 1920×1080 that walkthrough (PoE 3) had no cold frame over 1.42
+/// times the warm one in 8 runs at 0.25, where 2 of 4 runs at 0.5 had one over 1.5, and reached
+/// full detail a frame or two after 0.5 did. At 1024×768 (warm frames of 45–100 ms) 4 of 12 runs
+/// at 0.25 still had a frame over 1.5.
+pub const DEFAULT_FETCH_SHARE: f64 = 0.25;
 
 /// CPU time the calling thread has used, where the system tells (Linux); else `None`, and
 /// fetch budgets count wall time instead.
