@@ -306,5 +306,6 @@ def main():
           f"{peak:.1f} MiB held, median frame {statistics.median(total(s) for s in small):.1f} ms, "
           f"coarse pixels in the last frame {100 * small[-1]['coarse_pixels'] / rays:.2f} %")
 
+
 if __name__ == "__main__":
     main()

@@ -161,7 +161,7 @@ fn parse_mb(s: &str) -> Result<f64, String> {
 /// A share of a frame: a number > 0, or `inf`.
 fn parse_share(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
-        Ok(x) if x > 0.0 && !x.is_nan() => Ok(x),
+        Ok(x) if x > 0.0 => Ok(x),
         _ => Err(format!(
             "`{s}`: expected a share of a frame, a number > 0 or `inf`"
         )),

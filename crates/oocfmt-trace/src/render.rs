@@ -230,6 +230,7 @@ pub fn render(
     let tiles = tiles_x * h.div_ceil(TILE);
     let background = opts.background.map(encode_srgb);
     let start = Instant::now();
+    cache.begin_frame();
     let done: Vec<TileOut> = (0..tiles)
         .into_par_iter()
         .map_init(

@@ -270,7 +270,7 @@ impl MeshStore {
             next
         });
         // A hint far beyond what the triangles so far could use is not followed, so the
-        // table stays within a few bytes per triangle whatever a caller passes.
+        // table stays within 64 MiB plus 32 bytes per triangle whatever a caller passes.
         let cap = (1 << 24) + 8 * self.triangles.len();
         if let Some(h) = slot.filter(|&h| h < cap) {
             if h >= self.by_hint.len() {

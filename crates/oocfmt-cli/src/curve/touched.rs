@@ -54,6 +54,10 @@ impl BlockCache for Touched<'_> {
         self.inner.request(wanted);
     }
 
+    fn begin_frame(&self) {
+        self.inner.begin_frame();
+    }
+
     fn end_frame(&self) {
         self.inner.end_frame();
     }

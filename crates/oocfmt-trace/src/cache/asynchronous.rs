@@ -59,10 +59,10 @@ pub struct AsyncOptions {
     /// down less, and blocks arrive later.
     pub fetcher_nice: u8,
     /// CPU time the fetchers may spend reading and decoding blocks while a frame renders, as a
-    /// share of the last frame's duration (from its first block lookup to the step after it):
-    /// a fetcher starts a block only while less was spent since the last step, so a burst of
-    /// requests is spread over frames instead of slowing one down (a frame may go over by a
-    /// block per fetcher). Blocks started while the caller is idle ([`AsyncCache::idle`]) do
+    /// share of the last frame's duration (from its start, [`BlockCache::begin_frame`], to the
+    /// step after it): a fetcher starts a block only while less was spent since the last step,
+    /// so a burst of requests is spread over frames instead of slowing one down (a frame may go
+    /// over by a block per fetcher). Blocks started while the caller is idle ([`AsyncCache::idle`]) do
     /// not count. `f64::INFINITY`: no limit.
     pub fetch_share: f64,
     /// Decoded bytes look-ahead prefetching may load per frame ([`AsyncCache::prefetch`]); a
@@ -221,10 +221,10 @@ struct Shared {
     fetch_share: f64,
     fetch_allowed_ns: AtomicU64,
     fetch_spent_ns: AtomicU64,
-    /// Set by [`AsyncCache::idle`], cleared by the next frame's first block lookup. While it
+    /// Set by [`AsyncCache::idle`], cleared when the next frame begins. While it
     /// is set no frame is rendering, so fetching slows none down.
     idle: AtomicBool,
-    /// When the frame being rendered started (its first lookup after an idle spell, else the
+    /// When the frame being rendered started (its beginning after an idle spell, else the
     /// step before it), in nanoseconds since `epoch`.
     frame_start_ns: AtomicU64,
     epoch: Instant,
@@ -387,9 +387,9 @@ impl AsyncCache {
     }
 
     /// Says that the caller will not render until its next frame (it writes an image, waits
-    /// for the display, reads input): until that frame's first block lookup the fetchers work
-    /// without the per-frame limit, and what they spend does not count against the frame.
-    /// Render threads never call it; a walkthrough calls it after each step.
+    /// for the display, reads input): until that frame begins the fetchers work without the
+    /// per-frame limit, and what they spend does not count against the frame. Render threads
+    /// never call it; a walkthrough calls it after each step.
     pub fn idle(&self) {
         self.shared.idle.store(true, Relaxed);
         self.shared.work.notify_all();
@@ -397,13 +397,6 @@ impl AsyncCache {
 
     fn lookup(&self, id: u32) -> Option<Data> {
         self.lookups.fetch_add(1, Relaxed);
-        // A load first: the flag is set once per frame at most, so most lookups leave its
-        // cache line shared.
-        if self.shared.idle.load(Relaxed) && self.shared.idle.swap(false, Relaxed) {
-            self.shared
-                .frame_start_ns
-                .store(self.shared.now_ns(), Relaxed);
-        }
         let table = self.table.read().unwrap_or_else(PoisonError::into_inner);
         let r = table.get(&id)?;
         let frame = self.frame.load(Relaxed);
@@ -758,6 +751,14 @@ impl BlockCache for AsyncCache {
         for (id, w) in wanted {
             let mut shard = lock(&self.requests[*id as usize % SHARDS]);
             shard.entry(*id).or_default().merge(w);
+        }
+    }
+
+    fn begin_frame(&self) {
+        if self.shared.idle.swap(false, Relaxed) {
+            self.shared
+                .frame_start_ns
+                .store(self.shared.now_ns(), Relaxed);
         }
     }
 

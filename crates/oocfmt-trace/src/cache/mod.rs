@@ -27,6 +27,9 @@ pub trait BlockCache: Send + Sync {
     /// Blocks the rays of one tile wanted and did not get, each with what the rays made of its
     /// priority. A cache that loads on demand ignores it.
     fn request(&self, _wanted: &[(u32, Wish)]) {}
+    /// A frame starts: render calls it once, before its first ray. An asynchronous cache ends
+    /// an idle spell here ([`AsyncCache::idle`]) and times the frame's fetch budget from it.
+    fn begin_frame(&self) {}
     /// The step between two frames: an asynchronous cache publishes what its fetchers loaded,
     /// evicts and hands the fetchers the new requests. Render threads must not be inside a
     /// frame while it runs (it is correct then too, only less useful).
