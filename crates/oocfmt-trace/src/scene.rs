@@ -14,8 +14,6 @@ pub struct Scene {
     attrs: u16,
     /// The LOD representation the traversal stops on.
     lod: LodKind,
-    /// Loaded at open (the reader does it): a missing subtree always has something to show.
-    proxies: Vec<ProxyRecord>,
 }
 
 impl Scene {
@@ -29,18 +27,12 @@ impl Scene {
     /// A scene that stops on voxels when the file has them, else on R-LODs.
     pub fn from_reader(reader: Reader) -> Scene {
         let attrs = reader.metadata().schema.triangle_attributes();
-        let proxies = reader.proxies().to_vec();
         let lod = if reader.lod_kinds().voxel {
             LodKind::Voxel
         } else {
             LodKind::Rlod
         };
-        Scene {
-            reader,
-            attrs,
-            lod,
-            proxies,
-        }
+        Scene { reader, attrs, lod }
     }
 
     /// Stops on `lod`; an error when the file's LOD nodes do not carry it. Set it before any
@@ -74,8 +66,9 @@ impl Scene {
         &self.reader
     }
 
+    /// The reader's proxies, loaded at open: a missing subtree always has something to show.
     pub fn proxies(&self) -> &[ProxyRecord] {
-        &self.proxies
+        self.reader.proxies()
     }
 
     pub fn block_count(&self) -> usize {

@@ -3,7 +3,8 @@
 //! stays within its budget under many render threads and many frames with every fetch order,
 //! eviction policy and with look-ahead prefetching; prefetching never changes the converged
 //! image; a corrupted block is survived and reported; a cold walkthrough starts coarse and
-//! converges.
+//! converges; decoded blocks hold no spare capacity the budget would count, and the proxies
+//! are held once.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
@@ -499,5 +500,49 @@ fn fetchers_run_at_the_nice_value_asked_for() {
         // This thread kept its priority.
         assert_eq!(own(), mine);
         drop(cache);
+    }
+}
+
+#[test]
+fn decoded_blocks_and_proxies_hold_no_spare_bytes_and_blocks_decode_alike_in_any_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Scene::open(&uncompressed_mandelbulb(dir.path(), 20_000)).unwrap();
+    let ids: Vec<u32> = (0u32..)
+        .zip(scene.reader().entries())
+        .filter(|(_, e)| e.kind == BlockKind::Treelet)
+        .map(|(id, _)| id)
+        .collect();
+    assert!(ids.len() > 10, "{} treelet blocks", ids.len());
+    // One thread decodes every block forwards, then backwards: the working arrays it keeps
+    // between blocks must not leak one block into the next.
+    let forwards: Vec<String> = ids
+        .iter()
+        .map(|&id| {
+            let d = scene.load_treelets(id).unwrap();
+            // Exact sizes: the cache budget counts capacity, and a doubled vector would be
+            // up to half slack.
+            assert_eq!(d.nodes.capacity(), d.nodes.len(), "block {id}");
+            assert_eq!(d.lods.capacity(), d.lods.len(), "block {id}");
+            assert_eq!(d.looks.capacity(), d.looks.len(), "block {id}");
+            format!("{:?} {:?} {:?} {:?}", d.nodes, d.lods, d.looks, d.roots)
+        })
+        .collect();
+    assert!(forwards.iter().any(|d| d.contains("Lod {")));
+    for (id, e) in (0u32..).zip(scene.reader().entries()) {
+        if e.kind == BlockKind::Triangle {
+            let d = scene.load_triangles(id).unwrap();
+            assert_eq!(d.list.capacity(), d.list.len(), "block {id}");
+            assert_eq!(d.positions.capacity(), d.positions.len(), "block {id}");
+        }
+    }
+    // The proxies are held once, by the reader.
+    assert!(std::ptr::eq(scene.proxies(), scene.reader().proxies()));
+    for (&id, f) in ids.iter().zip(&forwards).rev() {
+        let d = scene.load_treelets(id).unwrap();
+        assert_eq!(
+            &format!("{:?} {:?} {:?} {:?}", d.nodes, d.lods, d.looks, d.roots),
+            f,
+            "block {id}"
+        );
     }
 }

@@ -98,10 +98,11 @@ pub const DEFAULT_FETCHER_NICE: u8 = 10;
 /// used up. On 2 cores that is 1.14 W at 0.25 and 1.33 W at 0.5. Per-thread scheduler figures
 /// of the 100M walkthrough of README bear it out: in 6 of its 8 cold frames over 1.3 times the
 /// warm ones the render threads used 1–11 % more CPU than warm, and waited for a core about as
-/// long as the fetcher ran. At 1920×1080 that walkthrough (PoE 3) had no cold frame over 1.42
-/// times the warm one in 8 runs at 0.25, where 2 of 4 runs at 0.5 had one over 1.5, and reached
-/// full detail a frame or two after 0.5 did. At 1024×768 (warm frames of 45–100 ms) 4 of 12 runs
-/// at 0.25 still had a frame over 1.5.
+/// long as the fetcher ran. At 1920×1080 that walkthrough (PoE 3) had no cold frame over 1.44
+/// times the warm one in 12 runs at 0.25, where 2 of 4 runs at 0.5 had one over 1.5, and reached
+/// full detail a frame or two after 0.5 did. At 1024×768 (warm frames of 45–100 ms) 6 of 28 runs
+/// at 0.25 still had a frame over 1.5: the fetcher near its budget with the render threads slowed
+/// by it, or the VM's `kdamond` holding a core for up to 50 ms (README).
 pub const DEFAULT_FETCH_SHARE: f64 = 0.25;
 
 /// CPU time the calling thread has used, where the system tells (Linux); else `None`, and
