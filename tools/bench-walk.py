@@ -6,7 +6,9 @@ Generates and converts a Mandelbulb with the release binary (or takes --model), 
 that approaches the model while orbiting it, and renders it
 
   1. cold, async cache, --runs times (each a fresh process: only the root block and the
-     proxies are resident);
+     proxies are resident); with --paired P, each run goes on over the path --paired-fill + P
+     more times, and the P timed passes are the run's own warm frames, seconds after its cold
+     ones;
   2. warm: the same path --warm-fill + --warm-passes times in one process, fetching without a
      per-frame limit; the warm time of a frame is the median of the timed passes (after the
      fill passes every block the walk wants is resident and nothing is fetched, if the cache
@@ -17,7 +19,8 @@ Prints per frame the warm milliseconds (the frame's rays plus the cache's step a
 cold run's milliseconds and ratio to the warm ones, the share of pixels still coarse (ending on
 a voxel or proxy where the warm frame shows triangles), blocks loaded, the working set; then per
 cold run the largest cold/warm ratio and the frame from which the cold images equal the warm
-ones; how far each warm pass strays from the warm median (the same ratio, measured where
+ones, and with --paired the largest ratio to the run's own later passes (a ratio measured in
+one run); how far each warm pass strays from the warm median (the same ratio, measured where
 nothing is fetched: the spread of a frame's time on the machine); and the small budget's peak.
 With --strategies: the same cold walkthrough, for each --cache-mb of --strategy-mb, with each
 cache strategy (fetch order Afra or Wald, eviction LRU or second chance, look-ahead prefetching
@@ -200,6 +203,12 @@ def main():
     p.add_argument("--cache-mb", type=int, default=2048)
     p.add_argument("--fetchers", type=int, help="fetcher threads (default: render's, half the cores)")
     p.add_argument("--runs", type=int, default=3, help="cold runs, each a fresh process")
+    p.add_argument("--paired", type=int, default=0,
+                   help="passes each cold run renders again after its cold one, in the same process: "
+                        "its own warm reference, measured seconds later (0: none)")
+    p.add_argument("--paired-fill", type=int, default=2,
+                   help="untimed passes each cold run renders between its cold one and the --paired ones, "
+                        "to load what the cold pass passed by")
     p.add_argument("--warm-passes", type=int, default=3,
                    help="timed warm passes (after --warm-fill passes); warm = their median")
     p.add_argument("--warm-fill", type=int, default=3,
@@ -207,6 +216,10 @@ def main():
                         "passes blocks by before they arrive, so one pass leaves some behind")
     p.add_argument("--render-args", default="", help="more `oocfmt render` flags for every run, "
                    "space-separated, e.g. '--fetch-priority normal'")
+    p.add_argument("--nice", type=int, default=0,
+                   help="run every render this many nice levels from this script's (below 0 needs "
+                        "root): -10 gives the render threads the CPU before the system's own threads, "
+                        "and the fetchers keep their distance below the render threads")
     p.add_argument("--dir", default=os.path.join(ROOT, "target", "bench-walk"))
     p.add_argument("--strategies", action="store_true",
                    help="compare the cache strategies on one cold walkthrough instead")
@@ -215,6 +228,9 @@ def main():
     p.add_argument("--plot", help="--strategies: write the per-frame plot to this SVG file")
     a = p.parse_args()
     require_binary()
+    if a.nice:
+        # The renders are this script's children and start at its nice value.
+        os.nice(a.nice)
     os.makedirs(a.dir, exist_ok=True)
     model = a.model
     if model is None:
@@ -241,8 +257,14 @@ def main():
         compare_strategies(a, model, cams, common, size_mb)
         return
     with tempfile.TemporaryDirectory(dir=a.dir) as work:
-        colds = [render_path(model, cams, work, f"cold{r}", common + ["--cache-mb", str(a.cache_mb)])
-                 for r in range(a.runs)]
+        # Each cold run goes on with --paired more passes over the path: its own warm frames,
+        # measured in the same process seconds later, so that the machine's slow spells of
+        # several seconds weigh on a cold frame and its reference alike.
+        later = a.paired_fill + a.paired if a.paired else 0
+        runs = [render_path(model, cams * (1 + later), work, f"cold{r}",
+                            common + ["--cache-mb", str(a.cache_mb)])
+                for r in range(a.runs)]
+        colds = [passes[:frames] for passes in runs]
         # The warm process fetches without a per-frame limit, so that its first pass leaves
         # every block the walk wants resident (a cache that holds the walk then fetches
         # nothing in the timed passes).
@@ -268,10 +290,16 @@ def main():
     # A frame's cold time over the runs: their median drops a spike one run had (the warm
     # passes show the machine makes those with nothing fetched), not a stall every run has.
     median_ratios = [statistics.median(total(c[i]) for c in colds) / warm[i] for i in range(frames)]
+    # Per run: the cold frame over the median of the same camera in the run's later passes.
+    timed = range(1 + a.paired_fill, 1 + a.paired_fill + a.paired)
+    paired = [[total(c[i]) / statistics.median(total(c[k * frames + i]) for k in timed)
+               for i in range(frames)] for c in runs] if a.paired else []
+    paired_loaded = [sum(f["blocks_loaded"] for f in c[timed.start * frames:]) for c in runs]
     cold = colds[0]
     print(f"model {model}: {size_mb:.1f} MiB; {a.frames} frames + {a.hold} still, {a.size}, --poe {a.poe}, "
           f"--cache-mb {a.cache_mb}, fetchers: {a.fetchers or 'default'}, render threads: all cores "
-          f"({cold[0]['stats']['threads']}); {a.runs} cold runs, warm = median of {a.warm_passes} passes")
+          f"({cold[0]['stats']['threads']}), nice {os.nice(0)}; {a.runs} cold runs, warm = median of "
+          f"{a.warm_passes} passes")
     print("ratio: the cold frame (rays + the cache's step) over the warm median; fetch: the fetchers' CPU "
           "ms between the steps around the frame; coarse: pixels ending on a voxel or proxy (at --poe > 0 "
           "the warm frames have some too), run 1; =warm: the cold frame's image equals the warm one's, per run")
@@ -295,6 +323,11 @@ def main():
               + (f"images equal the warm ones from frame {first_equal}" if first_equal is not None
                  else f"images never all equal the warm ones (last frame {100 * colds[r][-1]['coarse_pixels'] / rays:.2f} "
                       f"% coarse against {100 * warm_passes[0][-1]['coarse_pixels'] / rays:.2f} %)"))
+    for r, pr in enumerate(paired):
+        worst = max(range(frames), key=lambda i: pr[i])
+        print(f"cold run {r + 1} against its own {a.paired} later passes: worst frame {pr[worst]:.2f}x "
+              f"(frame {worst}), median {statistics.median(pr):.2f}; blocks those passes loaded: "
+              f"{paired_loaded[r]}")
     worst = max(range(frames), key=lambda i: median_ratios[i])
     print(f"median of the {a.runs} cold runs per frame: worst frame {median_ratios[worst]:.2f}x warm (frame {worst})")
     print(f"warm: median frame {statistics.median(warm):.1f} ms; each warm pass against the median: worst frame "

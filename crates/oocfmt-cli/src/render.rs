@@ -66,10 +66,11 @@ pub struct Args {
     /// after Wald et al. 2004); neither evicts a block the current frame touched
     #[arg(long, default_value = "lru", value_parser = Eviction::NAMES)]
     pub eviction: String,
-    /// Async cache: the fetcher threads' nice value (Linux): 0 shares the CPU equally with the
-    /// render threads (blocks arrive soonest, and a cold frame slows down while they decode);
-    /// higher values give the render threads the CPU first (19: fetchers use only what they
-    /// leave)
+    /// Async cache: how many nice levels below the render threads the fetcher threads run
+    /// (Linux): 0 shares the CPU equally with the render threads (blocks arrive soonest, and a
+    /// cold frame slows down while they decode); higher values give the render threads the CPU
+    /// first (19: fetchers use only what they leave). Counted from the process's own nice value,
+    /// up to 19
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_FETCHER_NICE, value_parser = clap::value_parser!(u8).range(0..=19))]
     pub fetcher_nice: u8,
     /// Async cache: CPU time the fetchers may spend reading and decoding blocks while a frame

@@ -11,6 +11,7 @@ pub mod error;
 pub mod intersect;
 pub mod lanes;
 pub mod light;
+pub mod memo;
 pub mod occlusion;
 pub mod output;
 pub mod packet;

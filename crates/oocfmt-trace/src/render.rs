@@ -234,7 +234,7 @@ pub fn render(
     let done: Vec<TileOut> = (0..tiles)
         .into_par_iter()
         .map_init(
-            || Memo::new(scene),
+            || Memo::pooled(scene),
             |memo, tile| {
                 memo.clear();
                 let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);

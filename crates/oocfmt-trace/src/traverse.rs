@@ -24,18 +24,19 @@
 //!   the split plane: it visits the side its origin lies on, both sides when the origin lies on
 //!   the plane. No 0 × inf product is formed.
 
-use std::cell::{Cell, OnceCell, RefCell};
 use std::sync::Arc;
 
 use arrayvec::ArrayVec;
-use rustc_hash::FxHashMap as HashMap;
 
 use oocfmt::records::{Sample, Voxel, MAX_TREE_DEPTH, PROXY_DIRECTIONS};
 
 use crate::blocks::{DNode, Plane, Shown, TreeletData, TriangleData, NONE};
-use crate::cache::{BlockCache, Wish};
+use crate::cache::BlockCache;
 use crate::intersect::{major_axis, ray_box, Ray};
 use crate::scene::Scene;
+
+/// Re-exported: the traversal is where a memo is used.
+pub use crate::memo::Memo;
 
 /// What a ray ended on.
 #[derive(Clone, Debug)]
@@ -63,166 +64,6 @@ pub struct Hit {
     /// (half the cell's diagonal), or the error radius of the R-LOD: secondary rays start
     /// beyond it. 0 for a triangle.
     pub radius: f32,
-}
-
-/// A block as one group of rays (a tile) saw it.
-enum Slot {
-    Treelets(Arc<TreeletData>),
-    Triangles(Arc<TriangleData>),
-    /// Not available to this tile: not loaded yet, missing for good, or not of the kind asked.
-    Missing,
-}
-
-/// Blocks one group of rays (a tile) has looked up: the shared cache is asked once per block
-/// per tile rather than once per ray, and the rays borrow the blocks from here, so the hot loop
-/// never touches a reference count. Slots are indexed by block id (one per directory entry), so
-/// a lookup is an index, not a hash. The blocks the rays wanted and did not get are gathered
-/// here too, with their priorities, and handed to the cache once per tile by [`Memo::flush`].
-pub struct Memo {
-    slots: Vec<OnceCell<Slot>>,
-    /// Slots filled since the last [`Memo::clear`].
-    touched: RefCell<Vec<u32>>,
-    wanted: RefCell<HashMap<u32, Wish>>,
-    flushed: Vec<(u32, Wish)>,
-    /// Nodes the rays traced with this memo visited (inner, LOD and leaf), since the last
-    /// [`Memo::take_visited`].
-    pub(crate) visited: Cell<u64>,
-    /// While set, [`Memo::want`] logs under this key instead of adding at once.
-    defer_key: Cell<Option<u32>>,
-    /// Deferred wants: key, block, radius, distance; in the order the rays made them.
-    deferred: RefCell<Vec<(u32, u32, f32, f32)>>,
-    /// How many of `deferred` (sorted by key) have been released.
-    released: Cell<usize>,
-}
-
-impl Memo {
-    /// A memo for the blocks of `scene`.
-    pub fn new(scene: &Scene) -> Memo {
-        Memo {
-            slots: (0..scene.block_count()).map(|_| OnceCell::new()).collect(),
-            touched: RefCell::default(),
-            wanted: RefCell::default(),
-            flushed: Vec::new(),
-            visited: Cell::new(0),
-            defer_key: Cell::new(None),
-            deferred: RefCell::default(),
-            released: Cell::new(0),
-        }
-    }
-
-    /// Forgets the blocks looked up so far (the next tile asks the cache again) and the
-    /// unflushed requests.
-    pub fn clear(&mut self) {
-        for id in self.touched.get_mut().drain(..) {
-            if let Some(slot) = self.slots.get_mut(id as usize) {
-                slot.take();
-            }
-        }
-        self.wanted.get_mut().clear();
-        self.deferred.get_mut().clear();
-        self.released.set(0);
-        self.defer_key.set(None);
-    }
-
-    /// Nodes visited since the last call, and a fresh count.
-    pub fn take_visited(&mut self) -> u64 {
-        self.visited.replace(0)
-    }
-
-    /// Hands the blocks wanted since the last flush to the cache as requests.
-    pub fn flush(&mut self, cache: &dyn BlockCache) {
-        self.release_deferred(u32::MAX);
-        self.deferred.get_mut().clear();
-        self.released.set(0);
-        let wanted = self.wanted.get_mut();
-        if wanted.is_empty() {
-            return;
-        }
-        self.flushed.clear();
-        self.flushed.extend(wanted.drain());
-        cache.request(&self.flushed);
-    }
-
-    /// One ray wanted block `id` and did not get it: see [`Wish::add`] for the priority.
-    pub(crate) fn want(&self, id: u32, radius: f32, t: f32) {
-        match self.defer_key.get() {
-            Some(key) => self.want_later(key, id, radius, t),
-            None => self.want_now(id, radius, t),
-        }
-    }
-
-    fn want_now(&self, id: u32, radius: f32, t: f32) {
-        self.wanted
-            .borrow_mut()
-            .entry(id)
-            .or_default()
-            .add(radius, t);
-    }
-
-    /// [`Memo::want`] for the ray of `key`, logged until [`Memo::release_deferred`] reaches
-    /// the key. Rays traced together in a packet make their wants interleaved; replaying them
-    /// ray by ray, in the order the rays would have been traced alone, keeps the sums of the
-    /// priorities bit for bit those of the single-ray path.
-    pub(crate) fn want_later(&self, key: u32, id: u32, radius: f32, t: f32) {
-        self.deferred.borrow_mut().push((key, id, radius, t));
-    }
-
-    /// Logs the wants of the rays traced from now on under `key` (None: adds them at once).
-    pub fn defer_wants(&self, key: Option<u32>) {
-        self.defer_key.set(key);
-    }
-
-    /// Adds the logged wants of every key up to `key`, key by key in increasing order, each
-    /// key's in the order they were made. Keys must be released in increasing order; a want
-    /// logged under a key already released is added at the next release.
-    pub fn release_deferred(&self, key: u32) {
-        let mut log = self.deferred.borrow_mut();
-        let mut at = self.released.get();
-        if at == 0 && !log.is_empty() {
-            // Stable: each key keeps the order of its wants.
-            log.sort_by_key(|e| e.0);
-        }
-        while let Some(&(k, id, radius, t)) = log.get(at) {
-            if k > key {
-                break;
-            }
-            self.want_now(id, radius, t);
-            at += 1;
-        }
-        if at == log.len() {
-            log.clear();
-            at = 0;
-        }
-        self.released.set(at);
-    }
-
-    fn slot(&self, id: u32, load: impl FnOnce() -> Slot) -> Option<&Slot> {
-        let cell = self.slots.get(id as usize)?;
-        Some(cell.get_or_init(|| {
-            self.touched.borrow_mut().push(id);
-            load()
-        }))
-    }
-
-    pub(crate) fn treelets(&self, cache: &dyn BlockCache, id: u32) -> Option<&TreeletData> {
-        let slot = self.slot(id, || {
-            cache.treelets(id).map_or(Slot::Missing, Slot::Treelets)
-        });
-        match slot? {
-            Slot::Treelets(d) => Some(d),
-            _ => None,
-        }
-    }
-
-    pub(crate) fn triangles(&self, cache: &dyn BlockCache, id: u32) -> Option<&Arc<TriangleData>> {
-        let slot = self.slot(id, || {
-            cache.triangles(id).map_or(Slot::Missing, Slot::Triangles)
-        });
-        match slot? {
-            Slot::Triangles(d) => Some(d),
-            _ => None,
-        }
-    }
 }
 
 /// The last LOD node met on a ray's path: its voxel ends the ray where the data below is

@@ -18,6 +18,7 @@ use oocfmt_trace::cache::asynchronous::AsyncOptions;
 use oocfmt_trace::cache::prefetch::LookAhead;
 use oocfmt_trace::cache::{Eviction, FetchOrder};
 use oocfmt_trace::render::{FrameStats, Image};
+use oocfmt_trace::traverse::{Memo, Surface, Tracer};
 use oocfmt_trace::{
     render, AsyncCache, BlockCache, BlockingCache, Camera, MmapCache, RenderOptions, Scene,
 };
@@ -460,7 +461,7 @@ fn thread_nice_values() -> Vec<i32> {
         .collect()
 }
 
-/// The fetchers run at the nice value asked for, the render threads and the caller keep theirs,
+/// The fetchers run the nice levels asked for below the caller, the render threads and the caller keep theirs,
 /// and the stats say what the fetchers got; nice 0 leaves them alone.
 #[cfg(target_os = "linux")]
 #[test]
@@ -469,10 +470,19 @@ fn fetchers_run_at_the_nice_value_asked_for() {
     let path = uncompressed_mandelbulb(dir.path(), 2_000);
     let scene = Arc::new(Scene::open(&path).unwrap());
     let own = || nice_of(Path::new("/proc/thread-self/stat"));
+    // This test's thread moves four levels down first (that needs no privilege), so that the
+    // fetchers it starts are seen to count from it rather than from nice 0 (4 + 7 is no other
+    // test's fetcher value).
+    let tid = rustix::thread::gettid();
+    let start = rustix::process::getpriority_process(Some(tid)).unwrap();
+    rustix::process::setpriority_process(Some(tid), (start + 4).min(19)).unwrap();
     let mine = own();
     assert!(mine.is_some());
+    // Counted from this thread's own nice value, which the fetchers start at.
+    let want = (mine.unwrap() + 7).min(19);
+    assert_ne!(want, 7);
     let before = thread_nice_values();
-    assert!(!before.contains(&7), "{before:?}");
+    assert!(!before.contains(&want), "{before:?}");
     for (nice, fetchers) in [(7u8, 3usize), (0, 2)] {
         let opts = AsyncOptions {
             fetchers,
@@ -484,12 +494,12 @@ fn fetchers_run_at_the_nice_value_asked_for() {
         let mut at = Vec::new();
         for _ in 0..500 {
             at = thread_nice_values();
-            if at.iter().filter(|&&n| n == 7).count() == if nice > 0 { fetchers } else { 0 } {
+            if at.iter().filter(|&&n| n == want).count() == if nice > 0 { fetchers } else { 0 } {
                 break;
             }
             std::thread::sleep(std::time::Duration::from_millis(10));
         }
-        let lowered = at.iter().filter(|&&n| n == 7).count();
+        let lowered = at.iter().filter(|&&n| n == want).count();
         assert_eq!(lowered, if nice > 0 { fetchers } else { 0 }, "{at:?}");
         let cam = &views(&scene)[0];
         let (_, stats) = render(&scene, &cache, cam, &POE0).unwrap();
@@ -545,4 +555,32 @@ fn decoded_blocks_and_proxies_hold_no_spare_bytes_and_blocks_decode_alike_in_any
             "block {id}"
         );
     }
+}
+
+/// Render threads keep their memo between tiles and frames (`Memo::pooled`): one handed back
+/// must not keep a block alive for the cache (its budget could not free it), and the next tile
+/// that takes it traces alike.
+#[test]
+fn a_memo_its_thread_keeps_holds_no_block() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Arc::new(Scene::open(&uncompressed_mandelbulb(dir.path(), 20_000)).unwrap());
+    let cache = BlockingCache::new(Arc::clone(&scene), 64 << 20);
+    let frame = views(&scene)[0].frame().unwrap();
+    let tracer = Tracer::new(&scene, &cache, 0.0);
+    let ray = frame.ray(W / 2, H / 2);
+    let trace = || {
+        let memo = Memo::pooled(&scene);
+        let hit = tracer.trace(&ray, &memo).unwrap();
+        let Surface::Triangle { data, triangle, .. } = hit.surface else {
+            panic!("the middle ray ends on {:?}", hit.surface);
+        };
+        (hit.t, data, triangle)
+    };
+    let (t, data, triangle) = trace();
+    // The cache's reference and ours: the memo this thread kept holds none.
+    assert_eq!(Arc::strong_count(&data), 2);
+    let again = trace();
+    assert_eq!((again.0, again.2), (t, triangle));
+    assert!(Arc::ptr_eq(&again.1, &data));
+    assert_eq!(Arc::strong_count(&data), 3);
 }

@@ -54,9 +54,10 @@ pub struct AsyncOptions {
     pub read_ahead: u8,
     pub fetch_order: FetchOrder,
     pub eviction: Eviction,
-    /// The fetchers' nice value (Linux only; elsewhere they keep the render threads' priority):
-    /// above 0 the render threads get the CPU first, so decoding a burst of blocks slows a frame
-    /// down less, and blocks arrive later.
+    /// How many nice levels below the thread that creates the cache the fetchers run (Linux
+    /// only; elsewhere they keep the render threads' priority): above 0 the render threads get
+    /// the CPU first, so decoding a burst of blocks slows a frame down less, and blocks arrive
+    /// later.
     pub fetcher_nice: u8,
     /// CPU time the fetchers may spend reading and decoding blocks while a frame renders, as a
     /// share of the last frame's duration (from its start, [`BlockCache::begin_frame`], to the
@@ -85,9 +86,10 @@ impl Default for AsyncOptions {
     }
 }
 
-/// The fetchers' default nice value. On 2 cores busy rendering, a fetcher at nice 10 gets about
-/// a tenth of a core (scheduler weight 110 against 1024 per render thread) and all the time the
-/// render threads leave between frames; at 19 it got so little that a 10M-triangle walkthrough
+/// How many nice levels below the render threads the fetchers run by default. On 2 cores busy
+/// rendering, a fetcher 10 levels below gets about a tenth of a core (scheduler weight 110
+/// against 1024 per render thread at nice 0) and all the time the
+/// render threads leave between frames; at nice 19 it got so little that a 10M-triangle walkthrough
 /// never converged (README, "Walkthroughs").
 pub const DEFAULT_FETCHER_NICE: u8 = 10;
 
@@ -121,18 +123,25 @@ fn thread_cpu_time() -> Option<Duration> {
     None
 }
 
-/// Lowers the calling thread's priority to `nice`; false where the system refused or cannot.
-/// On Linux the nice value belongs to the thread, not the process.
+/// Lowers the calling thread's priority by `levels` nice levels (to 19 at most); false where
+/// the system refused or cannot. On Linux the nice value belongs to the thread, not the
+/// process, and a new thread starts at its creator's: counting from there keeps the fetchers
+/// the same distance below the render threads when the whole process runs at another priority
+/// (`nice -n -10 oocfmt render ...` gives the render threads the CPU before the system's own
+/// threads, and the fetchers still get a tenth of a core against each).
 #[cfg(target_os = "linux")]
-fn lower_this_thread(nice: u8) -> bool {
+fn lower_this_thread(levels: u8) -> bool {
     let tid = rustix::thread::gettid();
-    rustix::process::setpriority_process(Some(tid), i32::from(nice)).is_ok()
+    let Ok(now) = rustix::process::getpriority_process(Some(tid)) else {
+        return false;
+    };
+    rustix::process::setpriority_process(Some(tid), (now + i32::from(levels)).min(19)).is_ok()
 }
 
 /// Elsewhere `setpriority` renices the whole process: fetchers keep the render threads'
 /// priority.
 #[cfg(not(target_os = "linux"))]
-fn lower_this_thread(_nice: u8) -> bool {
+fn lower_this_thread(_levels: u8) -> bool {
     false
 }
 

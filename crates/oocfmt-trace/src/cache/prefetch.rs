@@ -162,7 +162,7 @@ impl<'a> Probe<'a> {
         (0..rows)
             .into_par_iter()
             .map_init(
-                || Memo::new(scene),
+                || Memo::pooled(scene),
                 |memo, row| {
                     memo.clear();
                     let y = (f64::from(row) + 0.5) * h / f64::from(rows);
