@@ -100,7 +100,9 @@ impl Memo {
     /// This thread's kept memo when it has one for as many blocks as `scene`, else a new one;
     /// handed back to the thread when dropped. Rayon runs a frame's tiles as some 25 jobs, each
     /// wanting a memo of 16 bytes per block of the file (794 KiB for the 100M-triangle model):
-    /// a new one per job wrote 20 MB a frame, and in a fresh process on fresh pages.
+    /// a new one per job wrote 20 MB a frame, and in a fresh process on fresh pages. A thread
+    /// keeps its memo (empty, outside any cache budget) until it ends or takes one for a file
+    /// with another block count.
     pub fn pooled(scene: &Scene) -> PooledMemo {
         Self::pooled_for(scene.block_count())
     }

@@ -88,9 +88,9 @@ impl Default for AsyncOptions {
 
 /// How many nice levels below the render threads the fetchers run by default. On 2 cores busy
 /// rendering, a fetcher 10 levels below gets about a tenth of a core (scheduler weight 110
-/// against 1024 per render thread at nice 0) and all the time the
-/// render threads leave between frames; at nice 19 it got so little that a 10M-triangle walkthrough
-/// never converged (README, "Walkthroughs").
+/// against 1024 per render thread at nice 0) and all the time the render threads leave between
+/// frames; at nice 19 it got so little that a 10M-triangle walkthrough never converged (README,
+/// "Walkthroughs").
 pub const DEFAULT_FETCHER_NICE: u8 = 10;
 
 /// The fetchers' default CPU time per frame, as a share of the last frame's duration. Fetching
