@@ -204,8 +204,8 @@ def main():
     p.add_argument("--fetchers", type=int, help="fetcher threads (default: render's, half the cores)")
     p.add_argument("--runs", type=int, default=3, help="cold runs, each a fresh process")
     p.add_argument("--paired", type=int, default=0,
-                   help="passes each cold run renders again after its cold one, in the same process: "
-                        "its own warm reference, measured seconds later (0: none)")
+                   help="timed passes each cold run renders after its cold one and --paired-fill more, in "
+                        "the same process: its own warm reference, measured seconds later (0: none)")
     p.add_argument("--paired-fill", type=int, default=2,
                    help="untimed passes each cold run renders between its cold one and the --paired ones, "
                         "to load what the cold pass passed by")
@@ -257,9 +257,10 @@ def main():
         compare_strategies(a, model, cams, common, size_mb)
         return
     with tempfile.TemporaryDirectory(dir=a.dir) as work:
-        # Each cold run goes on with --paired more passes over the path: its own warm frames,
-        # measured in the same process seconds later, so that the machine's slow spells of
-        # several seconds weigh on a cold frame and its reference alike.
+        # With --paired, each cold run goes on over the path: --paired-fill passes to load what
+        # the cold pass passed by, then --paired timed ones, its own warm frames measured in the
+        # same process seconds later, so that the machine's slow spells of several seconds weigh
+        # on a cold frame and its reference alike.
         later = a.paired_fill + a.paired if a.paired else 0
         runs = [render_path(model, cams * (1 + later), work, f"cold{r}",
                             common + ["--cache-mb", str(a.cache_mb)])
@@ -291,10 +292,12 @@ def main():
     # passes show the machine makes those with nothing fetched), not a stall every run has.
     median_ratios = [statistics.median(total(c[i]) for c in colds) / warm[i] for i in range(frames)]
     # Per run: the cold frame over the median of the same camera in the run's later passes.
-    timed = range(1 + a.paired_fill, 1 + a.paired_fill + a.paired)
-    paired = [[total(c[i]) / statistics.median(total(c[k * frames + i]) for k in timed)
-               for i in range(frames)] for c in runs] if a.paired else []
-    paired_loaded = [sum(f["blocks_loaded"] for f in c[timed.start * frames:]) for c in runs]
+    paired, paired_loaded = [], []
+    if a.paired:
+        timed = range(1 + a.paired_fill, 1 + a.paired_fill + a.paired)
+        paired = [[total(c[i]) / statistics.median(total(c[k * frames + i]) for k in timed)
+                   for i in range(frames)] for c in runs]
+        paired_loaded = [sum(f["blocks_loaded"] for f in c[timed.start * frames:]) for c in runs]
     cold = colds[0]
     print(f"model {model}: {size_mb:.1f} MiB; {a.frames} frames + {a.hold} still, {a.size}, --poe {a.poe}, "
           f"--cache-mb {a.cache_mb}, fetchers: {a.fetchers or 'default'}, render threads: all cores "

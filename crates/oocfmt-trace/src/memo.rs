@@ -68,7 +68,6 @@ impl Drop for PooledMemo {
         let mut memo = std::mem::replace(&mut self.0, Memo::with_blocks(0));
         // The next user finds no block borrowed (the cache may evict it) and no want of ours.
         memo.clear();
-        memo.flushed.clear();
         memo.visited.set(0);
         let _ = KEPT.try_with(|kept| {
             if let Ok(mut kept) = kept.try_borrow_mut() {

@@ -461,8 +461,8 @@ fn thread_nice_values() -> Vec<i32> {
         .collect()
 }
 
-/// The fetchers run the nice levels asked for below the caller, the render threads and the caller keep theirs,
-/// and the stats say what the fetchers got; nice 0 leaves them alone.
+/// The fetchers run the nice levels asked for below the caller, the render threads and the
+/// caller keep theirs, and the stats say what the fetchers got; nice 0 leaves them alone.
 #[cfg(target_os = "linux")]
 #[test]
 fn fetchers_run_at_the_nice_value_asked_for() {

@@ -63,8 +63,8 @@ pub struct AsyncOptions {
     /// share of the last frame's duration (from its start, [`BlockCache::begin_frame`], to the
     /// step after it): a fetcher starts a block only while less was spent since the last step,
     /// so a burst of requests is spread over frames instead of slowing one down (a frame may go
-    /// over by a block per fetcher). Blocks started while the caller is idle ([`AsyncCache::idle`]) do
-    /// not count. `f64::INFINITY`: no limit.
+    /// over by a block per fetcher). Blocks started while the caller is idle
+    /// ([`AsyncCache::idle`]) do not count. `f64::INFINITY`: no limit.
     pub fetch_share: f64,
     /// Decoded bytes look-ahead prefetching may load per frame ([`AsyncCache::prefetch`]); a
     /// fetcher starts a prefetch only while less than this was loaded since the last call, so

@@ -74,8 +74,9 @@ pub struct CacheStats {
     /// Asynchronous cache: the fetch order and the eviction policy (empty for the others).
     pub fetch_order: &'static str,
     pub eviction: &'static str,
-    /// Asynchronous cache: how many nice levels below the render threads the fetchers run, when
-    /// the system took it (`None`: they run at the render threads' priority).
+    /// Asynchronous cache: how many nice levels below the render threads the fetchers were asked
+    /// to run (up to nice 19), when the system took it (`None`: they run at the render threads'
+    /// priority).
     pub fetcher_nice: Option<i32>,
     pub budget_bytes: u64,
     pub bytes_resident: u64,
