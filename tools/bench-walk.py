@@ -8,7 +8,10 @@ that approaches the model while orbiting it, and renders it
   1. cold, async cache, --runs times (each a fresh process: only the root block and the
      proxies are resident); with --paired P, each run goes on over the path --paired-fill + P
      more times, and the P timed passes are the run's own warm frames, seconds after its cold
-     ones;
+     ones; with --null N, N warm processes (--warm-fill passes, then one timed) alternate with
+     the cold runs: each warm process against the others is the null test, how often a run that
+     fetches nothing has a frame over 1.5x on this machine, and the cold runs are held to the
+     same reference;
   2. warm: the same path --warm-fill + --warm-passes times in one process, fetching without a
      per-frame limit; the warm time of a frame is the median of the timed passes (after the
      fill passes every block the walk wants is resident and nothing is fetched, if the cache
@@ -20,7 +23,9 @@ cold run's milliseconds and ratio to the warm ones, the share of pixels still co
 a voxel or proxy where the warm frame shows triangles), blocks loaded, the working set; then per
 cold run the largest cold/warm ratio and the frame from which the cold images equal the warm
 ones, and with --paired the largest ratio to the run's own later passes (a ratio measured in
-one run); how far each warm pass strays from the warm median (the same ratio, measured where
+one run); with --null, each cold run's and each warm process's worst frame against the warm
+processes' median (the other ones' for a warm process) and how many runs of each went over
+1.5x; how far each warm pass strays from the warm median (the same ratio, measured where
 nothing is fetched: the spread of a frame's time on the machine); and the small budget's peak.
 With --strategies: the same cold walkthrough, for each --cache-mb of --strategy-mb, with each
 cache strategy (fetch order Afra or Wald, eviction LRU or second chance, look-ahead prefetching
@@ -209,6 +214,10 @@ def main():
     p.add_argument("--paired-fill", type=int, default=2,
                    help="untimed passes each cold run renders between its cold one and the --paired ones, "
                         "to load what the cold pass passed by")
+    p.add_argument("--null", type=int, default=0,
+                   help="warm processes alternating with the cold runs, each --warm-fill passes and one "
+                        "timed pass: how often a run that fetches nothing has a frame over 1.5x the others' "
+                        "median (the machine's spread), next to the cold runs held to the same median")
     p.add_argument("--warm-passes", type=int, default=3,
                    help="timed warm passes (after --warm-fill passes); warm = their median")
     p.add_argument("--warm-fill", type=int, default=3,
@@ -262,14 +271,22 @@ def main():
         # same process seconds later, so that the machine's slow spells of several seconds weigh
         # on a cold frame and its reference alike.
         later = a.paired_fill + a.paired if a.paired else 0
-        runs = [render_path(model, cams * (1 + later), work, f"cold{r}",
-                            common + ["--cache-mb", str(a.cache_mb)])
-                for r in range(a.runs)]
-        colds = [passes[:frames] for passes in runs]
-        # The warm process fetches without a per-frame limit, so that its first pass leaves
-        # every block the walk wants resident (a cache that holds the walk then fetches
-        # nothing in the timed passes).
+        # With --null, warm processes alternate with the cold runs, so that both meet the
+        # machine's same slow minutes.
+        runs, nulls = [], []
+        # Warm processes fetch without a per-frame limit, so that their fill passes leave every
+        # block the walk wants resident (a cache that holds the walk then fetches nothing in the
+        # timed passes).
         unlimited = [] if "--fetch-share" in common else ["--fetch-share", "inf"]
+        for r in range(max(a.runs, a.null)):
+            if r < a.runs:
+                runs.append(render_path(model, cams * (1 + later), work, f"cold{r}",
+                                        common + ["--cache-mb", str(a.cache_mb)]))
+            if r < a.null:
+                passes = render_path(model, cams * (a.warm_fill + 1), work, f"null{r}",
+                                     common + ["--cache-mb", str(a.cache_mb)] + unlimited)
+                nulls.append(passes[a.warm_fill * frames:])
+        colds = [passes[:frames] for passes in runs]
         fill = a.warm_fill
         passes = render_path(model, cams * (fill + a.warm_passes), work, "warm",
                              common + ["--cache-mb", str(a.cache_mb)] + unlimited)
@@ -333,6 +350,28 @@ def main():
               f"{paired_loaded[r]}")
     worst = max(range(frames), key=lambda i: median_ratios[i])
     print(f"median of the {a.runs} cold runs per frame: worst frame {median_ratios[worst]:.2f}x warm (frame {worst})")
+    if nulls:
+        # The null test: a warm process fetches nothing, so a frame of its timed pass over 1.5x
+        # the other warm processes' median is the machine's spread, not a stall. The cold runs
+        # are held to the median of all the warm processes.
+        def worst_of(run, others):
+            r = [total(run[i]) / statistics.median(total(o[i]) for o in others) for i in range(frames)]
+            i = max(range(frames), key=lambda k: r[k])
+            return r[i], i
+
+        def listed(worsts):
+            return " ".join(f"{w:.2f} ({i})" for w, i in worsts)
+
+        null_worst = [worst_of(n, nulls[:k] + nulls[k + 1:]) for k, n in enumerate(nulls)] if len(nulls) > 1 else []
+        cold_worst = [worst_of(c, nulls) for c in colds]
+        over = sum(w > 1.5 for w, _ in cold_worst)
+        print(f"against {len(nulls)} warm processes (the median of each frame over them): cold runs' worst frames "
+              f"(frame) {listed(cold_worst)}; {over} of {len(colds)} runs over 1.5x")
+        walk = statistics.median(sum(map(total, c)) for c in colds) / statistics.median(sum(map(total, n)) for n in nulls)
+        print(f"whole walk: the cold runs' median {walk:.2f}x the warm processes' median")
+        if null_worst:
+            print(f"each warm process against the other warm processes: worst frames (frame) {listed(null_worst)}; "
+                  f"{sum(w > 1.5 for w, _ in null_worst)} of {len(null_worst)} runs over 1.5x, with nothing fetched")
     print(f"warm: median frame {statistics.median(warm):.1f} ms; each warm pass against the median: worst frame "
           + ", ".join(f"{n:.2f}x" for n in noise) + " (the spread of one frame's time on this machine)"
           + f"; blocks the timed warm passes loaded: {', '.join(map(str, warm_loaded))}"

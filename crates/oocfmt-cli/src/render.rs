@@ -76,8 +76,8 @@ pub struct Args {
     /// Async cache: CPU time the fetchers may spend reading and decoding blocks while a frame
     /// renders, as a share of the last frame's duration (`inf`: no limit). A burst of requests
     /// then arrives over several frames instead of slowing one down: with R cores busy
-    /// rendering, a frame takes at most about 1 / (1 - share / R) times its warm time, 1.14 at
-    /// 0.25 on 2 cores. While a walkthrough writes a frame's files the fetchers work without
+    /// rendering, a frame takes at most about 1 / (1 - share / R) times its warm time, 1.08 at
+    /// 0.15 on 2 cores. While a walkthrough writes a frame's files the fetchers work without
     /// this limit
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_FETCH_SHARE, value_parser = parse_share)]
     pub fetch_share: f64,

@@ -578,6 +578,10 @@ fn check_block(b: &oocfmt::Block, e: &Expect) -> Result<(), TestCaseError> {
             for (i, v) in vertices.iter().enumerate() {
                 prop_assert_eq!(t.vertex(i).ok(), Some(*v));
             }
+            // The bulk readers a decoder uses give the records written, in order.
+            prop_assert_eq!(&t.list_entries().collect::<Vec<_>>(), list);
+            prop_assert_eq!(&t.all_triangles().collect::<Vec<_>>(), triangles);
+            prop_assert_eq!(&t.all_vertices().collect::<Vec<_>>(), vertices);
             prop_assert!(
                 t.list(list.len()).is_err()
                     && t.triangle(triangles.len()).is_err()

@@ -97,15 +97,15 @@ pub const DEFAULT_FETCHER_NICE: u8 = 10;
 /// while a frame renders takes its CPU from the render threads, whatever the fetchers' nice
 /// value: with R render threads on R cores, a frame of warm time W that lets the fetchers spend
 /// the share s of its duration F takes F = W + s·F/R, so F = W / (1 − s/R) once the budget is
-/// used up. On 2 cores that is 1.14 W at 0.25 and 1.33 W at 0.5. Per-thread scheduler figures
-/// of the 100M walkthrough of README bear it out: in 6 of its 8 cold frames over 1.3 times the
-/// warm ones the render threads used 1–11 % more CPU than warm, and waited for a core about as
-/// long as the fetcher ran. At 1920×1080 that walkthrough (PoE 3) had no cold frame over 1.44
-/// times the warm one in 12 runs at 0.25, where 2 of 4 runs at 0.5 had one over 1.5, and reached
-/// full detail a frame or two after 0.5 did. At 1024×768 (warm frames of 45–100 ms) 6 of 28 runs
-/// at 0.25 still had a frame over 1.5: the fetcher near its budget with the render threads slowed
-/// by it, or the VM's `kdamond` holding a core for up to 50 ms (README).
-pub const DEFAULT_FETCH_SHARE: f64 = 0.25;
+/// used up. On 2 cores that is 1.08 W at 0.15, 1.14 W at 0.25 and 1.33 W at 0.5. Per-thread
+/// scheduler figures of the 100M walkthrough of README bear it out: in 6 of its 8 cold frames
+/// over 1.3 times the warm ones the render threads used 1–11 % more CPU than warm, and waited
+/// for a core about as long as the fetcher ran. On that walkthrough at 1024×768 (warm frames of
+/// 45–100 ms) 9 of 20 cold runs at 0.25 had a frame over 1.5 times the median of warm processes
+/// measured alongside and 6 of 30 at 0.15, where warm processes, which fetch nothing, had one in
+/// 3 of 36; 0.15 reaches full detail up to 4 frames later, once triangle blocks decode in bulk
+/// (README, "Triangle blocks decoded in bulk").
+pub const DEFAULT_FETCH_SHARE: f64 = 0.15;
 
 /// CPU time the calling thread has used, where the system tells (Linux); else `None`, and
 /// fetch budgets count wall time instead.

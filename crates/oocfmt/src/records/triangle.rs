@@ -1,7 +1,7 @@
 //! Triangle blocks (spec §8): a list section of 16-bit triangle indices, a triangle section of
 //! 16-bit vertex indices, and a vertex section of de-duplicated vertices.
 
-use crate::bytes::{f32_at, u16_at, u32_at, PutLe};
+use crate::bytes::{u16_at, u32_at, PutLe};
 use crate::error::{bad, Code, Error, Result};
 
 pub const ATTR_NORMALS: u16 = 1 << 0;
@@ -69,6 +69,52 @@ pub fn oct_decode(e: [i16; 2]) -> [f32; 3] {
     let y = y + if y >= 0.0 { -t } else { t };
     let len = (x * x + y * y + z * z).sqrt();
     [x / len, y / len, z / len]
+}
+
+/// Record `i` of a section of `len`-byte records.
+fn record<'a>(section: &'a [u8], i: usize, len: usize, what: &str) -> Result<&'a [u8]> {
+    i.checked_mul(len)
+        .and_then(|at| section.get(at..at.checked_add(len)?))
+        .ok_or_else(|| {
+            Error::malformed(
+                Code::TriangleIndex,
+                format!(
+                    "{what} {i} is past the {} of the block",
+                    section.len() / len
+                ),
+            )
+        })
+}
+
+/// The `N` bytes at `at` of a record whose length the section's stride fixed; zeros past its
+/// end, which the strides here never reach.
+#[inline]
+fn le<const N: usize>(record: &[u8], at: usize) -> [u8; N] {
+    record
+        .get(at..at + N)
+        .and_then(|b| b.try_into().ok())
+        .unwrap_or([0; N])
+}
+
+/// A triangle from its `triangle_len(attrs)`-byte record.
+#[inline]
+fn triangle_from(r: &[u8], attrs: u16) -> Triangle {
+    Triangle {
+        v: [0, 2, 4].map(|at| u16::from_le_bytes(le(r, at))),
+        material: (attrs & ATTR_MATERIALS != 0).then(|| u16::from_le_bytes(le(r, 6))),
+    }
+}
+
+/// A vertex from its `vertex_len(attrs)`-byte record: the position, then the normal and the
+/// colour where the block has them.
+#[inline]
+fn vertex_from(r: &[u8], attrs: u16) -> Vertex {
+    let normals = attrs & ATTR_NORMALS != 0;
+    Vertex {
+        position: [0, 4, 8].map(|at| f32::from_le_bytes(le(r, at))),
+        normal: normals.then(|| [12, 14].map(|at| i16::from_le_bytes(le(r, at)))),
+        colour: (attrs & ATTR_COLOURS != 0).then(|| le(r, if normals { 16 } else { 12 })),
+    }
 }
 
 /// A zero-copy view of a triangle block.
@@ -160,55 +206,37 @@ impl<'a> TriangleBlock<'a> {
     }
 
     pub fn triangle(&self, i: usize) -> Result<Triangle> {
-        let at = i * triangle_len(self.attrs);
-        let c = Code::TriangleIndex;
-        Ok(Triangle {
-            v: [
-                u16_at(self.triangles, at, c)?,
-                u16_at(self.triangles, at + 2, c)?,
-                u16_at(self.triangles, at + 4, c)?,
-            ],
-            material: if self.attrs & ATTR_MATERIALS != 0 {
-                Some(u16_at(self.triangles, at + 6, c)?)
-            } else {
-                None
-            },
-        })
+        let record = record(self.triangles, i, triangle_len(self.attrs), "triangle")?;
+        Ok(triangle_from(record, self.attrs))
     }
 
     pub fn vertex(&self, i: usize) -> Result<Vertex> {
-        let mut at = i * vertex_len(self.attrs);
-        let c = Code::TriangleIndex;
-        let position = [
-            f32_at(self.vertices, at, c)?,
-            f32_at(self.vertices, at + 4, c)?,
-            f32_at(self.vertices, at + 8, c)?,
-        ];
-        at += 12;
-        let normal = if self.attrs & ATTR_NORMALS != 0 {
-            let n = [
-                u16_at(self.vertices, at, c)? as i16,
-                u16_at(self.vertices, at + 2, c)? as i16,
-            ];
-            at += 4;
-            Some(n)
-        } else {
-            None
-        };
-        let colour = if self.attrs & ATTR_COLOURS != 0 {
-            let b = self
-                .vertices
-                .get(at..at + 4)
-                .ok_or_else(|| Error::malformed(c, "vertex colour past the end"))?;
-            Some([b[0], b[1], b[2], b[3]])
-        } else {
-            None
-        };
-        Ok(Vertex {
-            position,
-            normal,
-            colour,
-        })
+        let record = record(self.vertices, i, vertex_len(self.attrs), "vertex")?;
+        Ok(vertex_from(record, self.attrs))
+    }
+
+    /// Every list entry, in order: the bulk form of [`Self::list`] for decoders.
+    pub fn list_entries(&self) -> impl ExactSizeIterator<Item = u16> + 'a {
+        self.list
+            .chunks_exact(2)
+            .map(|r| u16::from_le_bytes(le(r, 0)))
+    }
+
+    /// Every triangle, in order: the bulk form of [`Self::triangle`]. The sections' lengths
+    /// were checked by [`Self::parse`], so each record is whole.
+    pub fn all_triangles(&self) -> impl ExactSizeIterator<Item = Triangle> + 'a {
+        let attrs = self.attrs;
+        self.triangles
+            .chunks_exact(triangle_len(attrs))
+            .map(move |r| triangle_from(r, attrs))
+    }
+
+    /// Every vertex, in order: the bulk form of [`Self::vertex`].
+    pub fn all_vertices(&self) -> impl ExactSizeIterator<Item = Vertex> + 'a {
+        let attrs = self.attrs;
+        self.vertices
+            .chunks_exact(vertex_len(attrs))
+            .map(move |r| vertex_from(r, attrs))
     }
 
     /// The three positions of triangle `i`.
