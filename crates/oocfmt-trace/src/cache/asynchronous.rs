@@ -103,8 +103,8 @@ pub const DEFAULT_FETCHER_NICE: u8 = 10;
 /// for a core about as long as the fetcher ran. On that walkthrough at 1024×768 (warm frames of
 /// 45–100 ms) 9 of 20 cold runs at 0.25 had a frame over 1.5 times the median of warm processes
 /// measured alongside and 6 of 30 at 0.15, where warm processes, which fetch nothing, had one in
-/// 3 of 36; 0.15 reaches full detail up to 4 frames later, once triangle blocks decode in bulk
-/// (README, "Triangle blocks decoded in bulk").
+/// 3 of 36. Since blocks decode faster, 0.15 reaches full detail as soon as 0.25 did; 0.1 left 6
+/// of 10 runs short of it by the walk's end (README, "Triangle blocks decoded in bulk").
 pub const DEFAULT_FETCH_SHARE: f64 = 0.15;
 
 /// CPU time the calling thread has used, where the system tells (Linux); else `None`, and

@@ -129,6 +129,7 @@ impl Node {
     }
 
     /// Decodes the node at byte `pos` of a node area, checking every field it holds alone.
+    #[inline]
     pub fn decode(area: &[u8], pos: usize) -> Result<Node> {
         let w = u32_at(area, pos, Code::NodeChild)?;
         let axis = ((w >> 2) & 3) as u8;
@@ -186,6 +187,7 @@ impl Node {
     }
 
     /// Field rules that need no context: axis, finiteness, non-empty.
+    #[inline]
     pub fn check(&self) -> Result<()> {
         let (axis, split) = match *self {
             Node::Basic {

@@ -131,6 +131,7 @@ impl Voxel {
     }
 
     /// Decodes the voxel at byte `off` of a voxel area.
+    #[inline]
     pub fn decode(area: &[u8], off: usize) -> Result<Voxel> {
         let word = |i: usize| -> Result<Sample> {
             let at = off + 4 * i;

@@ -115,11 +115,13 @@ impl<'a> TreeletBlock<'a> {
     }
 
     /// The node at byte `pos` of the node area.
+    #[inline]
     pub fn node(&self, pos: usize) -> Result<Node> {
         Node::decode(self.nodes, pos)
     }
 
     /// The voxel of a LOD node, whose LOD entry starts at `voxel_offset`.
+    #[inline]
     pub fn voxel(&self, voxel_offset: u32) -> Result<Voxel> {
         if !self.kinds.voxel {
             return bad(Code::Voxel, "this file's LOD nodes carry no voxels");
