@@ -102,21 +102,20 @@ pub struct TreeletData {
     pub roots: Vec<u32>,
 }
 
-/// A thread's working arrays for decoding treelet blocks, kept between blocks: a fetcher decodes
-/// block after block, and fresh pages are dear (the kernel zeroes each on first touch; page faults
-/// were half of a fetcher's profile in a cold walkthrough, README). 44 bytes per 8-byte node unit
-/// of the largest block decoded, outside the cache budget: 352 KiB per thread for 64 KiB blocks.
+/// A thread's working arrays for decoding blocks, kept between blocks: a fetcher decodes block
+/// after block, and fresh pages are dear (the kernel zeroes each on first touch; page faults
+/// were half of a fetcher's profile in a cold walkthrough, README). Outside the cache budget:
+/// for treelet blocks 44 bytes per 8-byte node unit of the largest block decoded (352 KiB per
+/// thread for 64 KiB blocks), for triangle blocks 24 bytes per vertex.
 #[derive(Default)]
 struct Scratch {
     index: Vec<u32>,
     order: Vec<(usize, Node)>,
+    vertices: Vec<Vertex>,
 }
 
 thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
-    /// A triangle block's vertices while its corners are gathered: kept for the reason
-    /// [`Scratch`] is, 24 bytes per vertex of the largest block decoded.
-    static VERTICES: std::cell::RefCell<Vec<Vertex>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 impl TreeletData {
@@ -134,7 +133,7 @@ impl TreeletData {
     pub fn decode_as(block: &Block, kind: LodKind) -> Result<TreeletData> {
         SCRATCH.with(|scratch| match scratch.try_borrow_mut() {
             Ok(mut s) => {
-                let Scratch { index, order } = &mut *s;
+                let Scratch { index, order, .. } = &mut *s;
                 Self::decode_with(block, kind, index, order)
             }
             // Only a decode inside a decode would find it taken; none does.
@@ -295,16 +294,17 @@ pub struct TriangleData {
 
 impl TriangleData {
     pub fn decode(block: &Block, attrs: u16) -> Result<TriangleData> {
-        VERTICES.with(|kept| match kept.try_borrow_mut() {
-            Ok(mut vertices) => Self::decode_with(block, attrs, &mut vertices),
+        SCRATCH.with(|scratch| match scratch.try_borrow_mut() {
+            Ok(mut s) => Self::decode_with(block, attrs, &mut s.vertices),
             // Only a decode inside a decode would find it taken; none does.
             Err(_) => Self::decode_with(block, attrs, &mut Vec::new()),
         })
     }
 
     /// One pass over each section with the bulk readers, after `check_contents` has checked
-    /// every index and position. A fetcher decodes block after block, and on the 100M-triangle
-    /// Mandelbulb this takes 0.55 of the time a `Result` per field read took (README).
+    /// every index (the list entries among them) and position. A fetcher decodes block after
+    /// block, and on the 100M-triangle Mandelbulb this takes 0.55 of the time a `Result` per
+    /// field read took (README).
     fn decode_with(block: &Block, attrs: u16, vertices: &mut Vec<Vertex>) -> Result<TriangleData> {
         let tb: TriangleBlock<'_> = block.triangles(attrs)?;
         tb.check_contents().map_err(|e| e.in_block(block.id))?;
@@ -344,13 +344,6 @@ impl TriangleData {
             if let (Some(ms), Some(m)) = (materials.as_mut(), t.material) {
                 ms.push(m);
             }
-        }
-        if list.iter().any(|&t| usize::from(t) >= n) {
-            return Err(Error::malformed(
-                Code::TriangleIndex,
-                format!("a list entry names a triangle past the {n} of the block"),
-            )
-            .in_block(block.id));
         }
         Ok(TriangleData {
             list,

@@ -251,7 +251,9 @@ impl<'a> TriangleBlock<'a> {
 
     /// Checks every index and every position. Material indices are checked by deep verify,
     /// which knows the material table. One pass over each section with fixed strides: this is
-    /// the hot loop of `verify`.
+    /// the hot loop of `verify`, so it reads only the fields it checks instead of going through
+    /// [`Self::all_triangles`] and [`Self::all_vertices`] (that took 9.2 µs against 7.6 µs in
+    /// the format's `parse+check` bench).
     pub fn check_contents(&self) -> Result<()> {
         let (t, w) = (self.triangle_count(), self.vertex_count());
         let u16s = |b: &'a [u8]| {
