@@ -170,8 +170,7 @@ fn block_decode(c: &mut Criterion, scene: &Scene) {
         b.iter(|| {
             TreeletData::decode(black_box(&treelets))
                 .unwrap()
-                .nodes
-                .len()
+                .node_count()
         })
     });
     g.throughput(Throughput::Bytes(triangles.data.len() as u64));

@@ -5,15 +5,82 @@
 
 use oocfmt::records::triangle::{oct_decode, Vertex, ATTR_COLOURS, ATTR_MATERIALS, ATTR_NORMALS};
 use oocfmt::records::{
-    lod_child_treelets, Node, Rlod, TreeletBlock, TriangleBlock, Voxel, NO_PROXY,
+    lod_child_treelets, LodEntry, Node, Sample, TreeletBlock, TriangleBlock, Voxel, NO_PROXY,
 };
 use oocfmt::{Block, Code, Error, Result};
 
-/// No child in [`DNode::Inner`].
+/// No child in [`NodeView::Inner`], no treelet in [`Lod`].
 pub const NONE: u32 = u32::MAX;
 
-#[derive(Clone, Copy, Debug)]
-pub enum DNode {
+/// A decoded node in 8 bytes, so that eight share a cache line and a treelet block holds
+/// about half the memory the 16-byte nodes took (every byte a fetcher writes is a fresh page
+/// to fault in: README). Read through [`TreeletData::node`].
+///
+/// `split` holds the split plane's bits, or a leaf's triangle block. `word`: bits 0–1 the
+/// axis, 3 for a leaf; for an inner node bit 2 clear, bit 3 set when the left child is present
+/// (it is the next node, [`TreeletBlock::walk_lods`]), bits 4–31 the right child's index + 1
+/// (0: none); for a LOD node bit 2 set and bits 3–31 the index in [`TreeletData::lods`]; for a
+/// leaf bits 2–17 its first list entry and bits 18–31 its count, or [`SPILLED`] there and the
+/// leaf in [`TreeletData::spilled`] at the index `split` holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DNode {
+    split: u32,
+    word: u32,
+}
+
+const LEAF_AXIS: u32 = 3;
+const LOD_BIT: u32 = 1 << 2;
+const LEFT_BIT: u32 = 1 << 3;
+/// A leaf's count field saying that the leaf lies in [`TreeletData::spilled`]: the format
+/// allows up to 65535 list entries, the node holds up to 16382.
+const SPILLED: u32 = (1 << 14) - 1;
+
+impl DNode {
+    /// An inner node; its right child is set later ([`DNode::set_right`]).
+    fn inner(axis: u8, split: f32, has_left: bool) -> DNode {
+        DNode {
+            split: split.to_bits(),
+            word: u32::from(axis & 3) | if has_left { LEFT_BIT } else { 0 },
+        }
+    }
+
+    fn set_right(&mut self, right: u32) {
+        self.word = self.word & 0xF | (right + 1) << 4;
+    }
+
+    fn lod(axis: u8, split: f32, lod: u32) -> DNode {
+        DNode {
+            split: split.to_bits(),
+            word: u32::from(axis & 3) | LOD_BIT | lod << 3,
+        }
+    }
+
+    /// A leaf, in the node when its count fits, else appended to `spilled`.
+    fn leaf(leaf: Leaf, spilled: &mut Vec<Leaf>) -> DNode {
+        if u32::from(leaf.count) < SPILLED {
+            DNode {
+                split: leaf.block,
+                word: LEAF_AXIS | u32::from(leaf.first) << 2 | u32::from(leaf.count) << 18,
+            }
+        } else {
+            spilled.push(leaf);
+            DNode {
+                // At most one leaf per 8 bytes of a block: the index fits.
+                split: (spilled.len() - 1) as u32,
+                word: LEAF_AXIS | SPILLED << 18,
+            }
+        }
+    }
+}
+
+/// The largest index each kind of node can hold: far above the nodes a 1 MiB block can have
+/// (131072), checked all the same.
+const MAX_RIGHT: usize = (1 << 28) - 2;
+const MAX_LOD: usize = (1 << 29) - 1;
+
+/// A node as the traversal matches on it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NodeView {
     Inner {
         axis: u8,
         split: f32,
@@ -21,8 +88,7 @@ pub enum DNode {
         left: u32,
         right: u32,
     },
-    /// The LOD fields live in [`TreeletData::lods`], so every node fits 16 bytes: the inner
-    /// nodes the traversal mostly reads pack four to a cache line.
+    /// The LOD fields live in [`TreeletData::lods`] and [`TreeletData::looks`].
     Lod {
         axis: u8,
         split: f32,
@@ -34,6 +100,14 @@ pub enum DNode {
         count: u16,
         block: u32,
     },
+}
+
+/// A leaf's triangles: `count` list entries from `first` in triangle block `block`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Leaf {
+    block: u32,
+    first: u16,
+    count: u16,
 }
 
 /// The LOD representation a traversal stops on.
@@ -84,33 +158,54 @@ pub struct Lod {
     pub child_block: u32,
 }
 
-/// What a LOD node shows when a ray stops there: read only then, so kept apart from [`Lod`].
-#[derive(Clone, Copy, Debug)]
-pub struct LodLook {
-    pub shown: Shown,
-    pub proxy: Option<u32>,
+/// Where a LOD node's look lies, read only when a ray stops there: 8 bytes, the samples and
+/// planes apart ([`TreeletData::look`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct LookAt {
+    /// Voxels: the first sample's index in `samples`, [`SIX`] set for six samples. R-LODs: the
+    /// index in `planes`.
+    at: u32,
+    /// The proxy's id, [`NO_PROXY`] for none.
+    proxy: u32,
 }
+
+/// In [`LookAt::at`]: the voxel has six samples.
+const SIX: u32 = 1 << 31;
 
 /// A decoded treelet block.
 #[derive(Debug)]
 pub struct TreeletData {
-    pub nodes: Vec<DNode>,
+    nodes: Vec<DNode>,
+    /// Leaves whose count the node cannot hold.
+    spilled: Vec<Leaf>,
     pub lods: Vec<Lod>,
     /// Same index as `lods`.
-    pub looks: Vec<LodLook>,
+    looks: Vec<LookAt>,
+    samples: Vec<Sample>,
+    planes: Vec<Plane>,
     /// Node index of each treelet's root.
     pub roots: Vec<u32>,
 }
 
 /// A thread's working arrays for decoding blocks, kept between blocks: a fetcher decodes block
 /// after block, and fresh pages are dear (the kernel zeroes each on first touch; page faults
-/// were half of a fetcher's profile in a cold walkthrough, README). Outside the cache budget:
-/// for treelet blocks 44 bytes per 8-byte node unit of the largest block decoded (352 KiB per
-/// thread for 64 KiB blocks), for triangle blocks 24 bytes per vertex.
+/// were half of a fetcher's profile in a cold walkthrough, README). A treelet block is built
+/// here and copied out into arrays of exactly its size. Outside the cache budget: for 64 KiB
+/// blocks under 400 KiB per thread for treelet blocks (most of it the children list of a block
+/// of inner nodes only) and 24 bytes per vertex for triangle blocks.
 #[derive(Default)]
 struct Scratch {
+    /// Node index by 8-byte unit of the node area.
     index: Vec<u32>,
-    order: Vec<(usize, Node)>,
+    /// Inner nodes' children to resolve once every node has its index: (node, child's byte
+    /// position, is it the left one).
+    children: Vec<(u32, usize, bool)>,
+    nodes: Vec<DNode>,
+    spilled: Vec<Leaf>,
+    lods: Vec<Lod>,
+    looks: Vec<LookAt>,
+    samples: Vec<Sample>,
+    planes: Vec<Plane>,
     vertices: Vec<Vertex>,
 }
 
@@ -132,70 +227,45 @@ impl TreeletData {
     /// Decodes the LOD nodes' `kind` (an error when the file lacks it).
     pub fn decode_as(block: &Block, kind: LodKind) -> Result<TreeletData> {
         SCRATCH.with(|scratch| match scratch.try_borrow_mut() {
-            Ok(mut s) => {
-                let Scratch { index, order, .. } = &mut *s;
-                Self::decode_with(block, kind, index, order)
-            }
+            Ok(mut s) => Self::decode_with(block, kind, &mut s),
             // Only a decode inside a decode would find it taken; none does.
-            Err(_) => Self::decode_with(block, kind, &mut Vec::new(), &mut Vec::new()),
+            Err(_) => Self::decode_with(block, kind, &mut Scratch::default()),
         })
     }
 
-    fn decode_with(
-        block: &Block,
-        kind: LodKind,
-        index: &mut Vec<u32>,
-        order: &mut Vec<(usize, Node)>,
-    ) -> Result<TreeletData> {
+    /// One walk over the block builds every array; the right children, which preorder puts
+    /// after their subtree's left half, are filled in after it.
+    fn decode_with(block: &Block, kind: LodKind, s: &mut Scratch) -> Result<TreeletData> {
         let tb = block.treelets()?;
-        let slots = tb.node_area().len() / 8;
-        // Node index by 8-byte unit; `walk` checks the preorder layout, so every child offset
-        // lands on a node of the same treelet.
-        index.clear();
-        index.resize(slots, NONE);
-        order.clear();
-        let mut lod_nodes = 0;
-        tb.walk(|_, pos, node| {
-            if let Some(slot) = index.get_mut(pos / 8) {
-                *slot = order.len() as u32;
+        s.index.clear();
+        s.index.resize(tb.node_area().len() / 8, NONE);
+        s.children.clear();
+        s.nodes.clear();
+        s.spilled.clear();
+        s.lods.clear();
+        s.looks.clear();
+        s.samples.clear();
+        s.planes.clear();
+        tb.walk_lods(|_, pos, node, entry| {
+            let i = s.nodes.len();
+            if let Some(slot) = s.index.get_mut(pos / 8) {
+                *slot = i as u32;
             }
-            lod_nodes += usize::from(matches!(node, Node::Lod { .. }));
-            order.push((pos, *node));
-            Ok(())
-        })
-        .map_err(|e| e.in_block(block.id))?;
-        let child = |pos: usize, units: u16| -> Result<u32> {
-            if units == 0 {
-                return Ok(NONE);
-            }
-            let at = TreeletBlock::child_pos(pos, units) / 8;
-            match index.get(at) {
-                Some(&i) if i != NONE => Ok(i),
-                _ => Err(Error::malformed(
-                    Code::NodeChild,
-                    format!("node at {pos}: child at unit {at} is not a node"),
-                )
-                .in_block(block.id)),
-            }
-        };
-        // Sized exactly: these stay in the cache, and growing them by doubling would touch
-        // fresh pages for every copy.
-        let mut nodes = Vec::with_capacity(order.len());
-        let mut lods = Vec::with_capacity(lod_nodes);
-        let mut looks = Vec::with_capacity(lod_nodes);
-        for &(pos, node) in order.iter() {
-            nodes.push(match node {
+            let node = match *node {
                 Node::Basic {
                     axis,
                     split,
                     left,
                     right,
-                } => DNode::Inner {
-                    axis,
-                    split,
-                    left: child(pos, left)?,
-                    right: child(pos, right)?,
-                },
+                } => {
+                    for (units, is_left) in [(left, true), (right, false)] {
+                        if units != 0 {
+                            let child = TreeletBlock::child_pos(pos, units);
+                            s.children.push((i as u32, child, is_left));
+                        }
+                    }
+                    DNode::inner(axis, split, left != 0)
+                }
                 Node::Lod {
                     axis,
                     split,
@@ -204,78 +274,213 @@ impl TreeletData {
                     right_present,
                     child_treelet,
                     child_block,
-                    voxel_offset,
+                    voxel_offset: _,
                     proxy,
                 } => {
+                    let lod = s.lods.len();
+                    let (radius, at) =
+                        look(kind, entry, radius, s).map_err(|e| e.at(pos as u64))?;
                     let [left, right] =
                         lod_child_treelets(child_treelet, [left_present, right_present])
                             .map(|t| t.unwrap_or(NONE));
-                    let in_block = |e: Error| e.at(pos as u64).in_block(block.id);
-                    let (radius, shown) = match kind {
-                        LodKind::Voxel => (
-                            radius,
-                            Shown::Voxel(tb.voxel(voxel_offset).map_err(in_block)?),
-                        ),
-                        LodKind::Rlod => {
-                            let r: Rlod = tb.rlod(voxel_offset).map_err(in_block)?;
-                            let plane = Plane {
-                                normal: r.normal,
-                                offset: r.offset,
-                                colour: r.colour_f32(),
-                                expansion: r.expansion(radius),
-                            };
-                            (r.error_radius(radius), Shown::Plane(plane))
-                        }
-                    };
-                    lods.push(Lod {
+                    s.lods.push(Lod {
                         radius,
                         left,
                         right,
                         child_block,
                     });
-                    looks.push(LodLook {
-                        shown,
-                        proxy: (proxy != NO_PROXY).then_some(proxy),
-                    });
-                    DNode::Lod {
-                        axis,
-                        split,
-                        lod: (lods.len() - 1) as u32,
-                    }
+                    s.looks.push(LookAt { at, proxy });
+                    DNode::lod(axis, split, index_within(lod, MAX_LOD, pos)?)
                 }
                 Node::Leaf {
                     count,
                     first,
                     block,
-                } => DNode::Leaf {
-                    first,
-                    count,
-                    block,
-                },
-            });
+                } => DNode::leaf(
+                    Leaf {
+                        block,
+                        first,
+                        count,
+                    },
+                    &mut s.spilled,
+                ),
+            };
+            s.nodes.push(node);
+            Ok(())
+        })
+        .map_err(|e| e.in_block(block.id))?;
+        for &(node, child, is_left) in &s.children {
+            let at = s.index.get(child / 8).copied().unwrap_or(NONE);
+            let bad = |what: &str| {
+                Error::malformed(
+                    Code::NodeChild,
+                    format!("node {node}: {what} child at byte {child} is not a node"),
+                )
+                .in_block(block.id)
+            };
+            if is_left {
+                // The walk's preorder check makes it the next node; the traversal relies on it.
+                if at != node + 1 {
+                    return Err(bad("left"));
+                }
+            } else {
+                let right = index_within(at as usize, MAX_RIGHT, child)
+                    .map_err(|e| e.in_block(block.id))?;
+                match s.nodes.get_mut(node as usize) {
+                    Some(n) if at != NONE => n.set_right(right),
+                    _ => return Err(bad("right")),
+                }
+            }
         }
         let roots = (0..tb.treelet_count())
             .map(|t| {
                 let span = tb.treelet_span(t)?;
-                Ok(index.get(span.start / 8).copied().unwrap_or(NONE))
+                Ok(s.index.get(span.start / 8).copied().unwrap_or(NONE))
             })
             .collect::<Result<Vec<_>>>()
             .map_err(|e| e.in_block(block.id))?;
+        // Copied out sized exactly: these stay in the cache, and growing them by doubling
+        // would touch fresh pages for every copy.
         Ok(TreeletData {
-            nodes,
-            lods,
-            looks,
+            nodes: s.nodes.clone(),
+            spilled: s.spilled.clone(),
+            lods: s.lods.clone(),
+            looks: s.looks.clone(),
+            samples: s.samples.clone(),
+            planes: s.planes.clone(),
             roots,
         })
+    }
+
+    /// Node `i`, None past the end.
+    #[inline]
+    pub fn node(&self, i: u32) -> Option<NodeView> {
+        let n = *self.nodes.get(i as usize)?;
+        let axis = (n.word & 3) as u8;
+        let split = f32::from_bits(n.split);
+        Some(if u32::from(axis) == LEAF_AXIS {
+            let count = n.word >> 18;
+            if count == SPILLED {
+                let leaf = *self.spilled.get(n.split as usize)?;
+                NodeView::Leaf {
+                    first: leaf.first,
+                    count: leaf.count,
+                    block: leaf.block,
+                }
+            } else {
+                NodeView::Leaf {
+                    first: (n.word >> 2) as u16,
+                    count: count as u16,
+                    block: n.split,
+                }
+            }
+        } else if n.word & LOD_BIT != 0 {
+            NodeView::Lod {
+                axis,
+                split,
+                lod: n.word >> 3,
+            }
+        } else {
+            NodeView::Inner {
+                axis,
+                split,
+                left: if n.word & LEFT_BIT != 0 { i + 1 } else { NONE },
+                right: (n.word >> 4).wrapping_sub(1),
+            }
+        })
+    }
+
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Every node, in index order (the file's preorder).
+    pub fn nodes(&self) -> impl Iterator<Item = NodeView> + '_ {
+        (0..self.nodes.len() as u32).filter_map(|i| self.node(i))
+    }
+
+    /// What LOD node `lod` shows, and its proxy.
+    pub fn look(&self, lod: u32) -> Option<(Shown, Option<u32>)> {
+        let l = *self.looks.get(lod as usize)?;
+        let shown = if self.planes.is_empty() {
+            let at = (l.at & !SIX) as usize;
+            Shown::Voxel(if l.at & SIX != 0 {
+                Voxel::Six(self.samples.get(at..at + 6)?.try_into().ok()?)
+            } else {
+                Voxel::Single(*self.samples.get(at)?)
+            })
+        } else {
+            Shown::Plane(*self.planes.get(l.at as usize)?)
+        };
+        Some((shown, (l.proxy != NO_PROXY).then_some(l.proxy)))
     }
 
     /// Bytes this block holds in memory, for the cache budget.
     pub fn bytes(&self) -> usize {
         std::mem::size_of::<Self>()
             + self.nodes.capacity() * std::mem::size_of::<DNode>()
+            + self.spilled.capacity() * std::mem::size_of::<Leaf>()
             + self.lods.capacity() * std::mem::size_of::<Lod>()
-            + self.looks.capacity() * std::mem::size_of::<LodLook>()
+            + self.looks.capacity() * std::mem::size_of::<LookAt>()
+            + self.samples.capacity() * std::mem::size_of::<Sample>()
+            + self.planes.capacity() * std::mem::size_of::<Plane>()
             + self.roots.capacity() * 4
+    }
+
+    /// Whether every array holds exactly its length (what the cache budget counts).
+    pub fn is_exactly_sized(&self) -> bool {
+        self.nodes.capacity() == self.nodes.len()
+            && self.spilled.capacity() == self.spilled.len()
+            && self.lods.capacity() == self.lods.len()
+            && self.looks.capacity() == self.looks.len()
+            && self.samples.capacity() == self.samples.len()
+            && self.planes.capacity() == self.planes.len()
+    }
+}
+
+/// A LOD node's radius for the metric and where its look goes, appended to `s`'s samples or
+/// planes.
+fn look(kind: LodKind, entry: &LodEntry, radius: f32, s: &mut Scratch) -> Result<(f32, u32)> {
+    let lacks =
+        |code, what: &str| Error::malformed(code, format!("this file's LOD nodes carry no {what}"));
+    match kind {
+        LodKind::Voxel => {
+            let v = entry.voxel.ok_or_else(|| lacks(Code::Voxel, "voxels"))?;
+            let at = index_within(s.samples.len(), (SIX - 1) as usize, 0)?;
+            Ok(match v {
+                Voxel::Single(x) => {
+                    s.samples.push(x);
+                    (radius, at)
+                }
+                Voxel::Six(xs) => {
+                    s.samples.extend(xs);
+                    (radius, at | SIX)
+                }
+            })
+        }
+        LodKind::Rlod => {
+            let r = entry.rlod.ok_or_else(|| lacks(Code::Rlod, "R-LODs"))?;
+            let at = index_within(s.planes.len(), u32::MAX as usize - 1, 0)?;
+            s.planes.push(Plane {
+                normal: r.normal,
+                offset: r.offset,
+                colour: r.colour_f32(),
+                expansion: r.expansion(radius),
+            });
+            Ok((r.error_radius(radius), at))
+        }
+    }
+}
+
+/// `i` as a u32 when it is at most `max`, else an error at byte `pos`.
+fn index_within(i: usize, max: usize, pos: usize) -> Result<u32> {
+    match u32::try_from(i) {
+        Ok(v) if i <= max => Ok(v),
+        _ => Err(Error::malformed(
+            Code::NodeChild,
+            format!("node at {pos}: index {i} is past what a decoded node holds ({max})"),
+        )
+        .at(pos as u64)),
     }
 }
 
@@ -367,8 +572,46 @@ impl TriangleData {
 #[cfg(test)]
 mod tests {
     #[test]
-    fn a_node_and_the_hot_part_of_a_lod_node_are_16_bytes() {
-        assert_eq!(std::mem::size_of::<super::DNode>(), 16);
+    fn a_node_is_8_bytes_and_the_hot_part_of_a_lod_node_16() {
+        assert_eq!(std::mem::size_of::<super::DNode>(), 8);
         assert_eq!(std::mem::size_of::<super::Lod>(), 16);
+        assert_eq!(std::mem::size_of::<super::LookAt>(), 8);
+    }
+
+    #[test]
+    fn a_leaf_keeps_its_fields_in_the_node_or_spilled() {
+        use super::*;
+        let mut spilled = Vec::new();
+        let leaves = [(7, 0, 1), (u32::MAX, u16::MAX, SPILLED as u16 - 1)]
+            .into_iter()
+            .chain([SPILLED as u16, u16::MAX].map(|count| (9, 65000, count)))
+            .map(|(block, first, count)| Leaf {
+                block,
+                first,
+                count,
+            });
+        let nodes: Vec<DNode> = leaves
+            .clone()
+            .map(|l| DNode::leaf(l, &mut spilled))
+            .collect();
+        assert_eq!(spilled.len(), 2);
+        let d = TreeletData {
+            nodes,
+            spilled,
+            lods: Vec::new(),
+            looks: Vec::new(),
+            samples: Vec::new(),
+            planes: Vec::new(),
+            roots: Vec::new(),
+        };
+        let views: Vec<NodeView> = d.nodes().collect();
+        let want: Vec<NodeView> = leaves
+            .map(|l| NodeView::Leaf {
+                first: l.first,
+                count: l.count,
+                block: l.block,
+            })
+            .collect();
+        assert_eq!(views, want);
     }
 }

@@ -23,7 +23,7 @@ use arrayvec::ArrayVec;
 
 use oocfmt::records::MAX_TREE_DEPTH;
 
-use crate::blocks::{DNode, TreeletData, NONE};
+use crate::blocks::{NodeView, TreeletData, NONE};
 use crate::intersect::{ray_box, Ray};
 use crate::lanes::RayLanes;
 use crate::traverse::{clamp_mid, proxy_sample, push_last, shown, Best, Hit, Memo, Tracer};
@@ -311,10 +311,10 @@ impl Tracer<'_> {
                 axis: e.axis,
             };
             lasts.truncate(usize::from(lods));
-            while let Some(&n) = at.data.nodes.get(at.node as usize) {
+            while let Some(n) = at.data.node(at.node) {
                 visited += rays_in::<N>(at.active);
                 let (s, first, second, next) = match n {
-                    DNode::Inner {
+                    NodeView::Inner {
                         axis: a,
                         split,
                         left,
@@ -328,7 +328,7 @@ impl Tracer<'_> {
                         let s = at.split(lanes, at.active, a, split, first, second);
                         (s, first, second, at.data)
                     }
-                    DNode::Lod {
+                    NodeView::Lod {
                         axis: a,
                         split,
                         lod,
@@ -363,16 +363,16 @@ impl Tracer<'_> {
                         };
                         // The rays that end here: those that stop, and, without the child
                         // block, all of them. Without the node's look they just end.
-                        let look = data.looks.get(lod as usize);
-                        if let (true, Some(look)) = (stop != 0 || child.is_none(), look) {
-                            let proxy = look.proxy.and_then(|p| self.proxies.get(p as usize));
+                        let look = (stop != 0 || child.is_none()).then(|| data.look(lod));
+                        if let Some(Some((look, proxy))) = look {
+                            let proxy = proxy.and_then(|p| self.proxies.get(p as usize));
                             let ends = if child.is_some() { stop } else { at.active };
                             for (i, ray) in rays.iter().enumerate() {
                                 if ends >> i & 1 == 0 {
                                     continue;
                                 }
                                 let (t0, t1, axis) = (at.t0[i], at.t1[i], at.axis[i] as u8);
-                                let own = || shown(&look.shown, ray, t0, t1, axis, l.radius);
+                                let own = || shown(&look, ray, t0, t1, axis, l.radius);
                                 let found = if stop >> i & 1 != 0 {
                                     own()
                                 } else {
@@ -409,7 +409,7 @@ impl Tracer<'_> {
                         let s = at.split(lanes, go, a, split, first, second);
                         (s, first, second, child)
                     }
-                    DNode::Leaf {
+                    NodeView::Leaf {
                         first,
                         count,
                         block,
@@ -439,13 +439,10 @@ impl Tracer<'_> {
                                         Some(lv) => {
                                             let (t, t1) = (lv.t[i], lv.t1[i]);
                                             memo.want_later(keys[i], block, lv.radius, t);
-                                            let found = lv
-                                                .data
-                                                .looks
-                                                .get(lv.lod as usize)
-                                                .and_then(|look| {
+                                            let found =
+                                                lv.data.look(lv.lod).and_then(|(look, _)| {
                                                     let axis = lv.axis[i] as u8;
-                                                    shown(&look.shown, ray, t, t1, axis, lv.radius)
+                                                    shown(&look, ray, t, t1, axis, lv.radius)
                                                 });
                                             offer(&mut best, &mut best_t, i, found);
                                         }

@@ -30,7 +30,7 @@ use arrayvec::ArrayVec;
 
 use oocfmt::records::{Sample, Voxel, MAX_TREE_DEPTH, PROXY_DIRECTIONS};
 
-use crate::blocks::{DNode, Plane, Shown, TreeletData, TriangleData, NONE};
+use crate::blocks::{NodeView, Plane, Shown, TreeletData, TriangleData, NONE};
 use crate::cache::BlockCache;
 use crate::intersect::{major_axis, ray_box, Ray};
 use crate::scene::Scene;
@@ -83,8 +83,8 @@ impl LastVoxel<'_> {
     /// What the node shows this ray, and where: its voxel at the cell's entry, or its plane's
     /// hit (None when the plane is missed).
     fn shown(&self, ray: &Ray) -> Option<(f32, Best<'static>)> {
-        let look = self.data.looks.get(self.lod as usize)?;
-        shown(&look.shown, ray, self.t, self.t1, self.axis, self.radius)
+        let (look, _) = self.data.look(self.lod)?;
+        shown(&look, ray, self.t, self.t1, self.axis, self.radius)
     }
 }
 
@@ -299,10 +299,10 @@ impl<'a> Tracer<'a> {
                 mut lods,
             } = e;
             lasts.truncate(usize::from(lods));
-            while let Some(&n) = data.nodes.get(node as usize) {
+            while let Some(n) = data.node(node) {
                 visited += 1;
                 match n {
-                    DNode::Inner {
+                    NodeView::Inner {
                         axis: a,
                         split,
                         left,
@@ -363,7 +363,7 @@ impl<'a> Tracer<'a> {
                             (false, false) => break,
                         }
                     }
-                    DNode::Lod {
+                    NodeView::Lod {
                         axis: a,
                         split,
                         lod,
@@ -389,17 +389,17 @@ impl<'a> Tracer<'a> {
                             memo.treelets(self.cache, l.child_block)
                         };
                         let Some(child) = child else {
-                            let Some(look) = data.looks.get(lod as usize) else {
+                            let Some((look, proxy)) = data.look(lod) else {
                                 break;
                             };
-                            let own = || shown(&look.shown, ray, t0, t1, axis, l.radius);
+                            let own = || shown(&look, ray, t0, t1, axis, l.radius);
                             let found = if stop {
                                 own()
                             } else {
                                 memo.want(l.child_block, l.radius, t0);
                                 // A proxy that sees nothing in the ray's direction skips the
                                 // subtree.
-                                match look.proxy.and_then(|p| self.proxies.get(p as usize)) {
+                                match proxy.and_then(|p| self.proxies.get(p as usize)) {
                                     Some(p) => Some(proxy_sample(&p.samples, ray))
                                         .filter(|s| !s.is_empty())
                                         .map(|s| (t0, Best::Proxy(s, l.radius))),
@@ -434,7 +434,7 @@ impl<'a> Tracer<'a> {
                         data = child;
                         (node, t0, t1, axis) = near;
                     }
-                    DNode::Leaf {
+                    NodeView::Leaf {
                         first,
                         count,
                         block,

@@ -12,8 +12,10 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use oocfmt::records::{LodKinds, Node, TreeletBlock, Voxel, NO_PROXY};
 use oocfmt::{BlockKind, Codec, WriteOptions};
 use oocfmt_build::layout::LayoutOptions;
+use oocfmt_trace::blocks::{LodKind, NodeView, Shown, NONE};
 use oocfmt_trace::cache::asynchronous::AsyncOptions;
 use oocfmt_trace::cache::prefetch::LookAhead;
 use oocfmt_trace::cache::{Eviction, FetchOrder};
@@ -531,10 +533,8 @@ fn decoded_blocks_and_proxies_hold_no_spare_bytes_and_blocks_decode_alike_in_any
             let d = scene.load_treelets(id).unwrap();
             // Exact sizes: the cache budget counts capacity, and a doubled vector would be
             // up to half slack.
-            assert_eq!(d.nodes.capacity(), d.nodes.len(), "block {id}");
-            assert_eq!(d.lods.capacity(), d.lods.len(), "block {id}");
-            assert_eq!(d.looks.capacity(), d.looks.len(), "block {id}");
-            format!("{:?} {:?} {:?} {:?}", d.nodes, d.lods, d.looks, d.roots)
+            assert!(d.is_exactly_sized(), "block {id}");
+            format!("{d:?}")
         })
         .collect();
     assert!(forwards.iter().any(|d| d.contains("Lod {")));
@@ -549,12 +549,132 @@ fn decoded_blocks_and_proxies_hold_no_spare_bytes_and_blocks_decode_alike_in_any
     assert!(std::ptr::eq(scene.proxies(), scene.reader().proxies()));
     for (&id, f) in ids.iter().zip(&forwards).rev() {
         let d = scene.load_treelets(id).unwrap();
-        assert_eq!(
-            &format!("{:?} {:?} {:?} {:?}", d.nodes, d.lods, d.looks, d.roots),
-            f,
-            "block {id}"
-        );
+        assert_eq!(&format!("{d:?}"), f, "block {id}");
     }
+}
+
+/// Every decoded node says what the file's node says: the same axis, split plane and fields,
+/// children at the nodes the file points to, each LOD node's voxel or plane and proxy, and each
+/// treelet's root; for a file with voxels and R-LODs, decoded either way.
+#[test]
+fn decoded_treelet_blocks_say_what_the_file_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let layout = LayoutOptions {
+        write: WriteOptions {
+            lod: LodKinds::BOTH,
+            ..WriteOptions::default()
+        }
+        .with_block_size(4096)
+        .unwrap(),
+        triangles_per_proxy: 0,
+        ..LayoutOptions::default()
+    };
+    let path = common::mandelbulb_with(dir.path(), 20_000, layout);
+    let mut seen = [0usize; 4];
+    for kind in [LodKind::Voxel, LodKind::Rlod] {
+        let scene = Scene::open(&path).unwrap().with_lod(kind).unwrap();
+        for (id, e) in (0u32..).zip(scene.reader().entries()) {
+            if e.kind != BlockKind::Treelet {
+                continue;
+            }
+            let d = scene.load_treelets(id).unwrap();
+            let block = scene.reader().read_block(id).unwrap();
+            let tb = block.treelets().unwrap();
+            let mut raw = Vec::new();
+            tb.walk_lods(|t, pos, n, entry| {
+                raw.push((t, pos, *n, *entry));
+                Ok(())
+            })
+            .unwrap();
+            let index = |pos: usize| raw.iter().position(|r| r.1 == pos).map(|i| i as u32);
+            let views: Vec<NodeView> = d.nodes().collect();
+            assert_eq!(views.len(), raw.len(), "block {id}");
+            for (i, (&(_, pos, node, entry), &view)) in raw.iter().zip(&views).enumerate() {
+                let child = |units: u16| match units {
+                    0 => NONE,
+                    u => index(TreeletBlock::child_pos(pos, u)).unwrap(),
+                };
+                match (node, view) {
+                    (
+                        Node::Basic {
+                            axis,
+                            split,
+                            left,
+                            right,
+                        },
+                        NodeView::Inner {
+                            axis: a,
+                            split: s,
+                            left: l,
+                            right: r,
+                        },
+                    ) => {
+                        assert_eq!((a, s.to_bits()), (axis, split.to_bits()));
+                        assert_eq!((l, r), (child(left), child(right)), "block {id} node {i}");
+                        seen[0] += usize::from(left != 0 && right != 0);
+                    }
+                    (
+                        Node::Lod {
+                            axis,
+                            split,
+                            radius,
+                            child_block,
+                            proxy,
+                            ..
+                        },
+                        NodeView::Lod {
+                            axis: a,
+                            split: s,
+                            lod,
+                        },
+                    ) => {
+                        assert_eq!((a, s.to_bits()), (axis, split.to_bits()));
+                        let l = d.lods[lod as usize];
+                        assert_eq!(l.child_block, child_block);
+                        let (shown, p) = d.look(lod).unwrap();
+                        assert_eq!(p, (proxy != NO_PROXY).then_some(proxy));
+                        seen[3] += usize::from(p.is_some());
+                        match (kind, shown) {
+                            (LodKind::Voxel, Shown::Voxel(v)) => {
+                                assert_eq!(l.radius, radius);
+                                assert_eq!(Some(v), entry.voxel, "block {id} node {i}");
+                                seen[1] += usize::from(matches!(v, Voxel::Six(_)));
+                            }
+                            (LodKind::Rlod, Shown::Plane(plane)) => {
+                                let r = entry.rlod.unwrap();
+                                assert_eq!(l.radius, r.error_radius(radius));
+                                assert_eq!((plane.normal, plane.offset), (r.normal, r.offset));
+                                assert_eq!(plane.expansion, r.expansion(radius));
+                            }
+                            other => panic!("block {id} node {i}: {other:?}"),
+                        }
+                    }
+                    (
+                        Node::Leaf {
+                            first,
+                            count,
+                            block,
+                        },
+                        NodeView::Leaf {
+                            first: f,
+                            count: c,
+                            block: b,
+                        },
+                    ) => {
+                        assert_eq!((f, c, b), (first, count, block));
+                        seen[2] += 1;
+                    }
+                    other => panic!("block {id} node {i}: {other:?}"),
+                }
+            }
+            for t in 0..tb.treelet_count() {
+                let start = tb.treelet_span(t).unwrap().start;
+                assert_eq!(Some(d.roots[t]), index(start), "block {id} treelet {t}");
+            }
+        }
+    }
+    // Inner nodes with both children, six-sided voxels, leaves and proxies were all met.
+    assert!(seen.iter().all(|&n| n > 0), "{seen:?}");
 }
 
 /// Render threads keep their memo between tiles and frames (`Memo::pooled`): one handed back

@@ -18,7 +18,7 @@ use oocfmt_build::gen::cad::{self, CadOptions};
 use oocfmt_build::gen::rng::Rng;
 use oocfmt_build::import::Recentre;
 use oocfmt_build::progress::NoProgress;
-use oocfmt_trace::blocks::{DNode, TreeletData};
+use oocfmt_trace::blocks::{NodeView, TreeletData};
 use oocfmt_trace::intersect::{ray_box, Ray};
 use oocfmt_trace::traverse::{Memo, Tracer};
 use oocfmt_trace::{render, BlockingCache, Camera, RenderOptions, Scene};
@@ -153,12 +153,12 @@ fn split_planes(scene: &Scene) -> Vec<(usize, f32)> {
             continue;
         }
         let d: TreeletData = scene.load_treelets(id).unwrap();
-        for n in &d.nodes {
-            match *n {
-                DNode::Inner { axis, split, .. } | DNode::Lod { axis, split, .. } => {
+        for n in d.nodes() {
+            match n {
+                NodeView::Inner { axis, split, .. } | NodeView::Lod { axis, split, .. } => {
                     planes.push((usize::from(axis), split));
                 }
-                DNode::Leaf { .. } => {}
+                NodeView::Leaf { .. } => {}
             }
         }
     }

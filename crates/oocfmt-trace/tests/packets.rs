@@ -18,7 +18,7 @@ use oocfmt::records::LodKinds;
 use oocfmt::WriteOptions;
 use oocfmt_build::gen::rng::Rng;
 use oocfmt_build::layout::LayoutOptions;
-use oocfmt_trace::blocks::{DNode, LodKind, TreeletData, TriangleData};
+use oocfmt_trace::blocks::{LodKind, NodeView, TreeletData, TriangleData};
 use oocfmt_trace::cache::{CacheStats, Wish};
 use oocfmt_trace::intersect::Ray;
 use oocfmt_trace::traverse::{Hit, Memo, Surface, Tracer};
@@ -195,13 +195,12 @@ fn random_packets<const N: usize>(scene: &Scene, rng: &mut Rng, count: usize) ->
         .root
         .and_then(|r| scene.load_treelets(r.block).ok())
         .map(|t| {
-            t.nodes
-                .iter()
-                .filter_map(|n| match *n {
-                    DNode::Inner { axis, split, .. } | DNode::Lod { axis, split, .. } => {
+            t.nodes()
+                .filter_map(|n| match n {
+                    NodeView::Inner { axis, split, .. } | NodeView::Lod { axis, split, .. } => {
                         Some((axis, split))
                     }
-                    DNode::Leaf { .. } => None,
+                    NodeView::Leaf { .. } => None,
                 })
                 .collect()
         })

@@ -20,6 +20,14 @@ pub struct TreeletBlock<'a> {
     kinds: LodKinds,
 }
 
+/// A LOD node's entry in the LOD area, as [`TreeletBlock::walk_lods`] decoded it: what the
+/// file's LOD kinds put there.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LodEntry {
+    pub voxel: Option<Voxel>,
+    pub rlod: Option<Rlod>,
+}
+
 /// What one pass over a treelet block found.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TreeletSummary {
@@ -155,6 +163,18 @@ impl<'a> TreeletBlock<'a> {
         &self,
         mut visit: impl FnMut(usize, usize, &Node) -> Result<()>,
     ) -> Result<TreeletSummary> {
+        self.walk_lods(|t, pos, node, _| visit(t, pos, node))
+    }
+
+    /// [`TreeletBlock::walk`], handing `visit` the LOD entry it decoded and checked for each
+    /// LOD node (empty for the other nodes), so that a reader that keeps them decodes each once.
+    ///
+    /// The preorder check makes a basic node's left child, when present, the node visited right
+    /// after it.
+    pub fn walk_lods(
+        &self,
+        mut visit: impl FnMut(usize, usize, &Node, &LodEntry) -> Result<()>,
+    ) -> Result<TreeletSummary> {
         let mut sum = TreeletSummary {
             treelets: self.treelet_count() as u64,
             ..TreeletSummary::default()
@@ -185,6 +205,7 @@ impl<'a> TreeletBlock<'a> {
                     )
                     .at(pos as u64));
                 }
+                let mut entry = LodEntry::default();
                 match node {
                     Node::Basic { left, right, .. } => {
                         sum.basic_nodes += 1;
@@ -207,20 +228,29 @@ impl<'a> TreeletBlock<'a> {
                     }
                     Node::Lod { voxel_offset, .. } => {
                         sum.lod_nodes += 1;
-                        if self.kinds.voxel {
-                            match self.voxel(voxel_offset).map_err(|e| e.at(pos as u64))? {
+                        let at = |e: Error| e.at(pos as u64);
+                        let voxel = if self.kinds.voxel {
+                            let v =
+                                Voxel::decode(self.voxels, voxel_offset as usize).map_err(at)?;
+                            match v {
                                 Voxel::Single(_) => sum.voxels_single += 1,
                                 Voxel::Six(_) => sum.voxels_six += 1,
                             }
-                        }
+                            Some(v)
+                        } else {
+                            None
+                        };
                         if self.kinds.rlod {
-                            self.rlod(voxel_offset).map_err(|e| e.at(pos as u64))?;
+                            let skip = voxel.map_or(0, |v| v.byte_len());
+                            let r = Rlod::decode(self.voxels, voxel_offset as usize + skip);
+                            entry.rlod = Some(r.map_err(at)?);
                             sum.rlods += 1;
                         }
+                        entry.voxel = voxel;
                     }
                     Node::Leaf { .. } => sum.leaves += 1,
                 }
-                visit(t, pos, &node)?;
+                visit(t, pos, &node, &entry)?;
             }
             if cursor != span.end {
                 return Err(Error::malformed(
