@@ -400,6 +400,7 @@ impl TreeletData {
     }
 
     /// What LOD node `lod` shows, and its proxy.
+    #[inline]
     pub fn look(&self, lod: u32) -> Option<(Shown, Option<u32>)> {
         let l = *self.looks.get(lod as usize)?;
         let shown = if self.planes.is_empty() {
