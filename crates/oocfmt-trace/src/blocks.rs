@@ -23,7 +23,7 @@ pub const NONE: u32 = u32::MAX;
 /// leaf bits 2–17 its first list entry and bits 18–31 its count, or [`SPILLED`] there and the
 /// leaf in [`TreeletData::spilled`] at the index `split` holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct DNode {
+struct DNode {
     split: u32,
     word: u32,
 }
@@ -88,7 +88,7 @@ pub enum NodeView {
         left: u32,
         right: u32,
     },
-    /// The LOD fields live in [`TreeletData::lods`] and [`TreeletData::looks`].
+    /// The LOD fields live in [`TreeletData::lods`] and [`TreeletData::look`].
     Lod {
         axis: u8,
         split: f32,
@@ -278,8 +278,7 @@ impl TreeletData {
                     proxy,
                 } => {
                     let lod = s.lods.len();
-                    let (radius, at) =
-                        look(kind, entry, radius, s).map_err(|e| e.at(pos as u64))?;
+                    let (radius, at) = look(kind, entry, radius, s, pos)?;
                     let [left, right] =
                         lod_child_treelets(child_treelet, [left_present, right_present])
                             .map(|t| t.unwrap_or(NONE));
@@ -316,6 +315,7 @@ impl TreeletData {
                     Code::NodeChild,
                     format!("node {node}: {what} child at byte {child} is not a node"),
                 )
+                .at(child as u64)
                 .in_block(block.id)
             };
             if is_left {
@@ -324,11 +324,14 @@ impl TreeletData {
                     return Err(bad("left"));
                 }
             } else {
+                if at == NONE {
+                    return Err(bad("right"));
+                }
                 let right = index_within(at as usize, MAX_RIGHT, child)
                     .map_err(|e| e.in_block(block.id))?;
                 match s.nodes.get_mut(node as usize) {
-                    Some(n) if at != NONE => n.set_right(right),
-                    _ => return Err(bad("right")),
+                    Some(n) => n.set_right(right),
+                    None => return Err(bad("right")),
                 }
             }
         }
@@ -439,15 +442,22 @@ impl TreeletData {
     }
 }
 
-/// A LOD node's radius for the metric and where its look goes, appended to `s`'s samples or
-/// planes.
-fn look(kind: LodKind, entry: &LodEntry, radius: f32, s: &mut Scratch) -> Result<(f32, u32)> {
-    let lacks =
-        |code, what: &str| Error::malformed(code, format!("this file's LOD nodes carry no {what}"));
+/// The radius for the metric of the LOD node at byte `pos` and where its look goes, appended
+/// to `s`'s samples or planes.
+fn look(
+    kind: LodKind,
+    entry: &LodEntry,
+    radius: f32,
+    s: &mut Scratch,
+    pos: usize,
+) -> Result<(f32, u32)> {
+    let lacks = |code, what: &str| {
+        Error::malformed(code, format!("this file's LOD nodes carry no {what}")).at(pos as u64)
+    };
     match kind {
         LodKind::Voxel => {
             let v = entry.voxel.ok_or_else(|| lacks(Code::Voxel, "voxels"))?;
-            let at = index_within(s.samples.len(), (SIX - 1) as usize, 0)?;
+            let at = index_within(s.samples.len(), (SIX - 1) as usize, pos)?;
             Ok(match v {
                 Voxel::Single(x) => {
                     s.samples.push(x);
@@ -461,7 +471,7 @@ fn look(kind: LodKind, entry: &LodEntry, radius: f32, s: &mut Scratch) -> Result
         }
         LodKind::Rlod => {
             let r = entry.rlod.ok_or_else(|| lacks(Code::Rlod, "R-LODs"))?;
-            let at = index_within(s.planes.len(), u32::MAX as usize - 1, 0)?;
+            let at = index_within(s.planes.len(), u32::MAX as usize - 1, pos)?;
             s.planes.push(Plane {
                 normal: r.normal,
                 offset: r.offset,
