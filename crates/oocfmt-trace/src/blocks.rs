@@ -5,7 +5,8 @@
 
 use oocfmt::records::triangle::{oct_decode, Vertex, ATTR_COLOURS, ATTR_MATERIALS, ATTR_NORMALS};
 use oocfmt::records::{
-    lod_child_treelets, LodEntry, Node, Sample, TreeletBlock, TriangleBlock, Voxel, NO_PROXY,
+    lod_child_treelets, LodEntry, Node, Sample, TreeletBlock, TriangleBlock, Voxel, NODE_BASIC_LEN,
+    NO_PROXY,
 };
 use oocfmt::{Block, Code, Error, Result};
 
@@ -191,15 +192,15 @@ pub struct TreeletData {
 /// after block, and fresh pages are dear (the kernel zeroes each on first touch; page faults
 /// were half of a fetcher's profile in a cold walkthrough, README). A treelet block is built
 /// here and copied out into arrays of exactly its size. Outside the cache budget: for 64 KiB
-/// blocks under 400 KiB per thread for treelet blocks (most of it the children list of a block
-/// of inner nodes only) and 24 bytes per vertex for triangle blocks.
+/// blocks under 250 KiB per thread for treelet blocks (most of it the right-children list of a
+/// block of inner nodes only) and 24 bytes per vertex for triangle blocks.
 #[derive(Default)]
 struct Scratch {
     /// Node index by 8-byte unit of the node area.
     index: Vec<u32>,
-    /// Inner nodes' children to resolve once every node has its index: (node, child's byte
-    /// position, is it the left one).
-    children: Vec<(u32, usize, bool)>,
+    /// Inner nodes' right children to resolve once every node has its index: (node, child's
+    /// byte position).
+    rights: Vec<(u32, usize)>,
     nodes: Vec<DNode>,
     spilled: Vec<Leaf>,
     lods: Vec<Lod>,
@@ -211,6 +212,21 @@ struct Scratch {
 
 thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
+}
+
+impl Scratch {
+    /// Empties the treelet arrays for a block of `slots` 8-byte node units.
+    fn reset(&mut self, slots: usize) {
+        self.index.clear();
+        self.index.resize(slots, NONE);
+        self.rights.clear();
+        self.nodes.clear();
+        self.spilled.clear();
+        self.lods.clear();
+        self.looks.clear();
+        self.samples.clear();
+        self.planes.clear();
+    }
 }
 
 impl TreeletData {
@@ -237,15 +253,7 @@ impl TreeletData {
     /// after their subtree's left half, are filled in after it.
     fn decode_with(block: &Block, kind: LodKind, s: &mut Scratch) -> Result<TreeletData> {
         let tb = block.treelets()?;
-        s.index.clear();
-        s.index.resize(tb.node_area().len() / 8, NONE);
-        s.children.clear();
-        s.nodes.clear();
-        s.spilled.clear();
-        s.lods.clear();
-        s.looks.clear();
-        s.samples.clear();
-        s.planes.clear();
+        s.reset(tb.node_area().len() / 8);
         tb.walk_lods(|_, pos, node, entry| {
             let i = s.nodes.len();
             if let Some(slot) = s.index.get_mut(pos / 8) {
@@ -258,11 +266,14 @@ impl TreeletData {
                     left,
                     right,
                 } => {
-                    for (units, is_left) in [(left, true), (right, false)] {
-                        if units != 0 {
-                            let child = TreeletBlock::child_pos(pos, units);
-                            s.children.push((i as u32, child, is_left));
-                        }
+                    // The walk's preorder check puts the left child right after its parent;
+                    // the traversal relies on it, so it is checked here too.
+                    if left != 0 && left as usize * 8 != NODE_BASIC_LEN {
+                        return Err(not_a_node(i, "left", TreeletBlock::child_pos(pos, left)));
+                    }
+                    if right != 0 {
+                        s.rights
+                            .push((i as u32, TreeletBlock::child_pos(pos, right)));
                     }
                     DNode::inner(axis, split, left != 0)
                 }
@@ -308,31 +319,17 @@ impl TreeletData {
             Ok(())
         })
         .map_err(|e| e.in_block(block.id))?;
-        for &(node, child, is_left) in &s.children {
+        for &(node, child) in &s.rights {
             let at = s.index.get(child / 8).copied().unwrap_or(NONE);
-            let bad = |what: &str| {
-                Error::malformed(
-                    Code::NodeChild,
-                    format!("node {node}: {what} child at byte {child} is not a node"),
-                )
-                .at(child as u64)
-                .in_block(block.id)
-            };
-            if is_left {
-                // The walk's preorder check makes it the next node; the traversal relies on it.
-                if at != node + 1 {
-                    return Err(bad("left"));
-                }
-            } else {
-                if at == NONE {
-                    return Err(bad("right"));
-                }
-                let right = index_within(at as usize, MAX_RIGHT, child)
-                    .map_err(|e| e.in_block(block.id))?;
-                match s.nodes.get_mut(node as usize) {
-                    Some(n) => n.set_right(right),
-                    None => return Err(bad("right")),
-                }
+            let bad = || not_a_node(node as usize, "right", child).in_block(block.id);
+            if at == NONE {
+                return Err(bad());
+            }
+            let right =
+                index_within(at as usize, MAX_RIGHT, child).map_err(|e| e.in_block(block.id))?;
+            match s.nodes.get_mut(node as usize) {
+                Some(n) => n.set_right(right),
+                None => return Err(bad()),
             }
         }
         let roots = (0..tb.treelet_count())
@@ -481,6 +478,14 @@ fn look(
             Ok((r.error_radius(radius), at))
         }
     }
+}
+
+fn not_a_node(node: usize, which: &str, child: usize) -> Error {
+    Error::malformed(
+        Code::NodeChild,
+        format!("node {node}: {which} child at byte {child} is not a node"),
+    )
+    .at(child as u64)
 }
 
 /// `i` as a u32 when it is at most `max`, else an error at byte `pos`.
