@@ -77,6 +77,54 @@ fn render_writes_a_png_a_depth_pfm_and_stats() {
     assert!(stats["cache"]["blocks_loaded"].as_u64().unwrap() > 0);
 }
 
+/// The stats' `pinned_cores` of `render mb.oocf ARGS`, and the PNG's bytes.
+fn pinned_and_png(d: &Path, args: &[&str]) -> (Vec<u64>, Vec<u8>) {
+    let mut all = vec![
+        "render",
+        "mb.oocf",
+        "-o",
+        "pin.png",
+        "--size",
+        "64x48",
+        "--stats-json",
+        "pin.json",
+    ];
+    all.extend_from_slice(args);
+    ok_(&oocfmt(&all, d));
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("pin.json")).unwrap()).unwrap();
+    let cores = stats["pinned_cores"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_u64().unwrap())
+        .collect();
+    (cores, std::fs::read(d.join("pin.png")).unwrap())
+}
+
+#[test]
+fn render_binds_one_thread_per_core_unless_told_not_to() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    converted_mandelbulb(d);
+    let usable = oocfmt_trace::affinity::usable_cores();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let (pinned, png) = pinned_and_png(d, &[]);
+    match usable {
+        // As many render threads as cores: each has its own, in order.
+        Some(cores) if cores.len() >= 2 && cores.len() == threads => {
+            assert_eq!(pinned, cores.iter().map(|&c| c as u64).collect::<Vec<_>>());
+        }
+        _ => assert!(pinned.is_empty(), "{pinned:?}"),
+    }
+    // Told not to, or with one thread, nothing is bound; the picture is the same.
+    for args in [&["--no-pin"][..], &["--threads", "1"]] {
+        let (none, same) = pinned_and_png(d, args);
+        assert!(none.is_empty(), "{args:?}: {none:?}");
+        assert!(same == png, "{args:?}: another picture");
+    }
+}
+
 #[test]
 fn render_usage_errors_exit_2() {
     let dir = tempfile::tempdir().unwrap();

@@ -24,8 +24,9 @@ a voxel or proxy where the warm frame shows triangles), blocks loaded, the worki
 cold run the largest cold/warm ratio and the frame from which the cold images equal the warm
 ones, and with --paired the largest ratio to the run's own later passes (a ratio measured in
 one run); with --null, each cold run's and each warm process's worst frame against the warm
-processes' median (the other ones' for a warm process) and how many runs of each went over
-1.5x; how far each warm pass strays from the warm median (the same ratio, measured where
+processes' median (the other ones' for a warm process), how many runs of each went over 1.5x
+and the chance of as many cold runs over if cold and warm runs went over alike (Fisher's exact
+test); how far each warm pass strays from the warm median (the same ratio, measured where
 nothing is fetched: the spread of a frame's time on the machine); and the small budget's peak.
 With --strategies: the same cold walkthrough, for each --cache-mb of --strategy-mb, with each
 cache strategy (fetch order Afra or Wald, eviction LRU or second chance, look-ahead prefetching
@@ -44,6 +45,7 @@ Standard library only.
 
 import argparse
 import json
+import math
 import os
 import statistics
 import tempfile
@@ -195,6 +197,14 @@ def compare_strategies(a, model, cams, common, size_mb):
 def same_png(a, b):
     with open(a, "rb") as fa, open(b, "rb") as fb:
         return fa.read() == fb.read()
+
+
+def fisher_greater(a, n1, b, n2):
+    """One-sided Fisher's exact test: the chance that a sample of n1 runs out of n1 + n2, of which
+    a + b went over, holds a or more of them, if which runs went over had nothing to do with the
+    sample they were in. Small: the first sample goes over more often than the second."""
+    k, n = a + b, n1 + n2
+    return sum(math.comb(k, x) * math.comb(n - k, n1 - x) for x in range(a, min(k, n1) + 1)) / math.comb(n, n1)
 
 
 def main():
@@ -370,8 +380,11 @@ def main():
         walk = statistics.median(sum(map(total, c)) for c in colds) / statistics.median(sum(map(total, n)) for n in nulls)
         print(f"whole walk: the cold runs' median {walk:.2f}x the warm processes' median")
         if null_worst:
+            null_over = sum(w > 1.5 for w, _ in null_worst)
             print(f"each warm process against the other warm processes: worst frames (frame) {listed(null_worst)}; "
-                  f"{sum(w > 1.5 for w, _ in null_worst)} of {len(null_worst)} runs over 1.5x, with nothing fetched")
+                  f"{null_over} of {len(null_worst)} runs over 1.5x, with nothing fetched")
+            print(f"chance of {over} or more of {len(colds)} cold runs over 1.5x if cold and warm runs went over "
+                  f"alike (Fisher's exact test, one-sided): {fisher_greater(over, len(colds), null_over, len(null_worst)):.2f}")
     print(f"warm: median frame {statistics.median(warm):.1f} ms; each warm pass against the median: worst frame "
           + ", ".join(f"{n:.2f}x" for n in noise) + " (the spread of one frame's time on this machine)"
           + f"; blocks the timed warm passes loaded: {', '.join(map(str, warm_loaded))}"

@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
+use oocfmt_trace::affinity;
 use oocfmt_trace::blocks::LodKind;
 use oocfmt_trace::cache::asynchronous::AsyncOptions;
 use oocfmt_trace::cache::prefetch::{LookAhead, DEFAULT_FRAMES_AHEAD, DEFAULT_PROBE_ROWS};
@@ -124,6 +125,11 @@ pub struct Args {
     /// Render threads (default: all cores)
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Leave the render threads' cores to the system. By default (Linux), when there are as
+    /// many render threads as cores the process may use, each is bound to a core of its own,
+    /// so that two never share one while another runs only a fetcher
+    #[arg(long)]
+    pub no_pin: bool,
     /// Primary rays per pixel, at stratified points of the pixel (deterministic), averaged in
     /// linear RGB; 1 is the ray through the pixel centre. The depth image (--depth-out) and the
     /// primary-ray endings stay those of the centre ray, traced in addition when N > 1
@@ -503,6 +509,17 @@ pub(crate) fn use_threads(threads: Option<usize>) -> Result<(), CliError> {
     Ok(())
 }
 
+/// Binds each render thread to a core of its own when there are as many as the cores the
+/// process may use (`--no-pin` leaves them to the system). With fewer, a core is left free
+/// for the fetchers and the system, and binding would only tie the render threads down.
+fn pin_threads() {
+    if let Some(cores) = affinity::usable_cores() {
+        if cores.len() == rayon::current_num_threads() {
+            affinity::bind_pool(&cores);
+        }
+    }
+}
+
 /// Cameras in world coordinates (a walkthrough's) moved into the scene's stored coordinates.
 pub(crate) fn stored_cameras(scene: &Scene, cameras: Vec<Camera>) -> Vec<Camera> {
     let origin = scene.metadata().scene.origin;
@@ -566,6 +583,9 @@ pub(crate) fn still_camera(scene: &Scene, v: &View) -> Camera {
 
 pub fn run(a: &Args) -> CliResult {
     use_threads(a.threads)?;
+    if !a.no_pin {
+        pin_threads();
+    }
     let (w, h) = a.view.size;
     // Read the path before the model: a bad path file is reported without loading anything.
     let path_cameras = match &a.path {
@@ -611,14 +631,19 @@ pub fn run(a: &Args) -> CliResult {
     }
     let p = &stats.primary;
     outln!(
-        "wrote {} ({}x{}, --poe {}): {:.1} ms, {:.2} Mrays/s on {} threads",
+        "wrote {} ({}x{}, --poe {}): {:.1} ms, {:.2} Mrays/s on {} threads{}",
         a.output.display(),
         image.width,
         image.height,
         stats.poe,
         stats.ms,
         stats.rays_per_second / 1e6,
-        stats.threads
+        stats.threads,
+        if stats.pinned_cores.is_empty() {
+            ""
+        } else {
+            ", one per core"
+        }
     )?;
     if settle_frames > 1 {
         outln!("async cache: {settle_frames} frames to load the view's blocks")?;

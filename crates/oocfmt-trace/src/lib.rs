@@ -3,6 +3,7 @@
 //! [`cache::BlockCache`] hands decoded blocks to the traversal; [`render::render`] makes one
 //! frame.
 
+pub mod affinity;
 pub mod blocks;
 pub mod cache;
 pub mod camera;
