@@ -19,6 +19,7 @@ Standard library only; needs `perf`.
 """
 
 import argparse
+import bisect
 import collections
 import glob
 import json
@@ -57,8 +58,9 @@ def render(model, cams, work, name, extra):
 
 
 def on_cpu(trace):
-    """Per task (pid, name, priority): the (start, end) spans it ran, from a sched_switch trace."""
-    spans, current = collections.defaultdict(list), {}
+    """Per task (pid, name, priority): the starts and ends of the spans it ran, in time order,
+    from a sched_switch trace."""
+    spans, current = collections.defaultdict(lambda: ([], [])), {}
     for line in trace.splitlines():
         m = SWITCH.search(line)
         if not m:
@@ -66,13 +68,21 @@ def on_cpu(trace):
         cpu, t = int(m.group(1)), float(m.group(2))
         if cpu in current:
             start, task = current[cpu]
-            spans[task].append((start, t))
+            spans[task][0].append(start)
+            spans[task][1].append(t)
         current[cpu] = (t, (int(m.group(7)), m.group(6), int(m.group(8))))
     return spans
 
 
 def cpu_in(spans, a, b):
-    return sum(max(0.0, min(e, b) - max(s, a)) for s, e in spans)
+    """Seconds a task ran between a and b: its spans do not overlap, so their ends are in order
+    too, and the first that ends after a is found by bisection."""
+    starts, ends = spans
+    total, i = 0.0, bisect.bisect_right(ends, a)
+    while i < len(starts) and starts[i] < b:
+        total += min(ends[i], b) - max(starts[i], a)
+        i += 1
+    return total
 
 
 def main():
