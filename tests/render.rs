@@ -103,13 +103,13 @@ fn pinned_and_png(d: &Path, args: &[&str]) -> (Vec<u64>, Vec<u8>) {
 }
 
 #[test]
-fn render_binds_one_thread_per_core_unless_told_not_to() {
+fn render_pin_binds_one_thread_per_core() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     converted_mandelbulb(d);
     let usable = oocfmt_trace::affinity::usable_cores();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let (pinned, png) = pinned_and_png(d, &[]);
+    let (pinned, png) = pinned_and_png(d, &["--pin"]);
     match usable {
         // As many render threads as cores: each has its own, in order.
         Some(cores) if cores.len() >= 2 && cores.len() == threads => {
@@ -117,8 +117,8 @@ fn render_binds_one_thread_per_core_unless_told_not_to() {
         }
         _ => assert!(pinned.is_empty(), "{pinned:?}"),
     }
-    // Told not to, or with one thread, nothing is bound; the picture is the same.
-    for args in [&["--no-pin"][..], &["--threads", "1"]] {
+    // By default, or with one thread, nothing is bound; the picture is the same.
+    for args in [&[][..], &["--pin", "--threads", "1"]] {
         let (none, same) = pinned_and_png(d, args);
         assert!(none.is_empty(), "{args:?}: {none:?}");
         assert!(same == png, "{args:?}: another picture");

@@ -141,7 +141,7 @@ pub struct FrameStats {
     pub lod_c: f64,
     pub threads: usize,
     /// The core each render thread is bound to, in the pool's order, when each is bound to a
-    /// core of its own (`oocfmt render` binds them when there are as many as cores); empty when
+    /// core of its own (`oocfmt render --pin` binds them when there are as many as cores); empty when
     /// the system places them.
     pub pinned_cores: Vec<usize>,
     pub ms: f64,
