@@ -123,6 +123,27 @@ fn render_pin_binds_one_thread_per_core() {
         assert!(none.is_empty(), "{args:?}: {none:?}");
         assert!(same == png, "{args:?}: another picture");
     }
+    // --pin that binds nothing says so.
+    let o = oocfmt(
+        &[
+            "render",
+            "mb.oocf",
+            "-o",
+            "one.png",
+            "--size",
+            "8x8",
+            "--pin",
+            "--threads",
+            "1",
+        ],
+        d,
+    );
+    ok_(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--pin: the render threads are not bound"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -512,14 +512,26 @@ pub(crate) fn use_threads(threads: Option<usize>) -> Result<(), CliError> {
 }
 
 /// Binds each render thread to a core of its own when there are as many as the cores the
-/// process may use (`--pin`). With fewer, a core is left free for the fetchers and the
-/// system, and binding would only tie the render threads down.
-fn pin_threads() {
-    if let Some(cores) = affinity::usable_cores() {
-        if cores.len() == rayon::current_num_threads() {
-            affinity::bind_pool(&cores);
-        }
+/// process may use (`--pin`); otherwise says why not. With fewer threads, a core is left free
+/// for the fetchers and the system, and binding would only tie the render threads down.
+fn pin_threads() -> Result<(), String> {
+    let threads = rayon::current_num_threads();
+    let Some(cores) = affinity::usable_cores() else {
+        return Err("the system does not say which cores the process may use".into());
+    };
+    if threads < 2 {
+        return Err("one render thread shares its core with no other".into());
     }
+    if cores.len() != threads {
+        return Err(format!(
+            "{threads} render threads on {} usable cores: they are bound only when as many",
+            cores.len()
+        ));
+    }
+    if affinity::bind_pool(&cores).is_empty() {
+        return Err("the system refused".into());
+    }
+    Ok(())
 }
 
 /// Cameras in world coordinates (a walkthrough's) moved into the scene's stored coordinates.
@@ -586,7 +598,9 @@ pub(crate) fn still_camera(scene: &Scene, v: &View) -> Camera {
 pub fn run(a: &Args) -> CliResult {
     use_threads(a.threads)?;
     if a.pin {
-        pin_threads();
+        if let Err(why) = pin_threads() {
+            eprintln!("oocfmt: warning: --pin: the render threads are not bound: {why}");
+        }
     }
     let (w, h) = a.view.size;
     // Read the path before the model: a bad path file is reported without loading anything.
