@@ -59,14 +59,18 @@ pub fn pool_cores() -> Vec<usize> {
     else {
         return Vec::new();
     };
-    let mut sorted = cores.clone();
-    sorted.sort_unstable();
-    sorted.dedup();
-    if sorted.len() == cores.len() {
+    if all_distinct(&cores) {
         cores
     } else {
         Vec::new()
     }
+}
+
+fn all_distinct(cores: &[usize]) -> bool {
+    let mut sorted = cores.to_vec();
+    sorted.sort_unstable();
+    sorted.dedup();
+    sorted.len() == cores.len()
 }
 
 /// Binds each thread of the current rayon pool to its own core of `cores`, in order, and
@@ -74,10 +78,7 @@ pub fn pool_cores() -> Vec<usize> {
 /// are fewer than 2 threads, fewer distinct cores than threads, or the system refused one.
 pub fn bind_pool(cores: &[usize]) -> Vec<usize> {
     let threads = rayon::current_num_threads();
-    let mut distinct = cores.to_vec();
-    distinct.sort_unstable();
-    distinct.dedup();
-    if threads < 2 || distinct.len() != cores.len() || cores.len() < threads {
+    if threads < 2 || !all_distinct(cores) || cores.len() < threads {
         return Vec::new();
     }
     let tried = rayon::broadcast(|ctx| {
