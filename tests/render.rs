@@ -123,6 +123,21 @@ fn render_pin_binds_one_thread_per_core() {
         assert!(none.is_empty(), "{args:?}: {none:?}");
         assert!(same == png, "{args:?}: another picture");
     }
+    // A walkthrough gives the same cores with every frame's figures.
+    std::fs::write(
+        d.join("path.json"),
+        r#"[{"eye": [0, 0, 4], "look_at": [0, 0, 0]}, {"eye": [0, 1, 4], "look_at": [0, 0, 0]}]"#,
+    )
+    .unwrap();
+    for f in walk_figures(d, "walk", &["--pin"]) {
+        let cores: Vec<u64> = f["pinned_cores"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_u64().unwrap())
+            .collect();
+        assert_eq!(cores, pinned);
+    }
     // --pin that binds nothing says so.
     let o = oocfmt(
         &[

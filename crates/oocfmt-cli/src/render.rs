@@ -383,7 +383,19 @@ struct FrameFigures {
     #[serde(skip_serializing_if = "Option::is_none")]
     accuracy: Option<Accuracy>,
     missing_blocks: usize,
+    /// The cores the render threads are bound to with --pin, in the pool's order; empty when
+    /// the system places them.
+    pinned_cores: Vec<usize>,
     stats: FrameStats,
+}
+
+/// A still image's figures: the frame's, and where its render threads ran.
+#[derive(Serialize)]
+struct StillFigures<'a> {
+    #[serde(flatten)]
+    stats: &'a FrameStats,
+    /// As in [`FrameFigures`].
+    pinned_cores: &'a [usize],
 }
 
 impl FrameFigures {
@@ -423,6 +435,7 @@ impl FrameFigures {
             fetch_cpu_ms: (c.fetch_cpu_ms - before.fetch_cpu_ms).max(0.0),
             accuracy: None,
             missing_blocks: c.missing_blocks.len(),
+            pinned_cores: Vec::new(),
             stats,
         }
     }
@@ -512,9 +525,10 @@ pub(crate) fn use_threads(threads: Option<usize>) -> Result<(), CliError> {
 }
 
 /// Binds each render thread to a core of its own when there are as many as the cores the
-/// process may use (`--pin`); otherwise says why not. With fewer threads, a core is left free
-/// for the fetchers and the system, and binding would only tie the render threads down.
-fn pin_threads() -> Result<(), String> {
+/// process may use (`--pin`), and returns their cores in the pool's order; otherwise says why
+/// not. With fewer threads, a core is left free for the fetchers and the system, and binding
+/// would only tie the render threads down.
+fn pin_threads() -> Result<Vec<usize>, String> {
     let threads = rayon::current_num_threads();
     let Some(cores) = affinity::usable_cores() else {
         return Err("the system does not say which cores the process may use".into());
@@ -528,10 +542,11 @@ fn pin_threads() -> Result<(), String> {
             cores.len()
         ));
     }
-    if affinity::bind_pool(&cores).is_empty() {
+    let bound = affinity::bind_pool(&cores);
+    if bound.is_empty() {
         return Err("the system refused".into());
     }
-    Ok(())
+    Ok(bound)
 }
 
 /// Cameras in world coordinates (a walkthrough's) moved into the scene's stored coordinates.
@@ -597,11 +612,14 @@ pub(crate) fn still_camera(scene: &Scene, v: &View) -> Camera {
 
 pub fn run(a: &Args) -> CliResult {
     use_threads(a.threads)?;
-    if a.pin {
-        if let Err(why) = pin_threads() {
+    let pinned_cores = if a.pin {
+        pin_threads().unwrap_or_else(|why| {
             eprintln!("oocfmt: warning: --pin: the render threads are not bound: {why}");
-        }
-    }
+            Vec::new()
+        })
+    } else {
+        Vec::new()
+    };
     let (w, h) = a.view.size;
     // Read the path before the model: a bad path file is reported without loading anything.
     let path_cameras = match &a.path {
@@ -629,7 +647,7 @@ pub fn run(a: &Args) -> CliResult {
     };
     if let Some(cameras) = path_cameras {
         let cameras = stored_cameras(&scene, cameras);
-        return walkthrough(a, &scene, &cache, &cameras, &opts);
+        return walkthrough(a, &scene, &cache, &cameras, &opts, &pinned_cores);
     }
     let camera = still_camera(&scene, &a.view);
     let c = cache.get();
@@ -643,7 +661,13 @@ pub fn run(a: &Args) -> CliResult {
         write_pfm(d, image.width, image.height, &image.depth).map_err(cli_error)?;
     }
     if let Some(s) = &a.stats_json {
-        write_json(s, &stats)?;
+        write_json(
+            s,
+            &StillFigures {
+                stats: &stats,
+                pinned_cores: &pinned_cores,
+            },
+        )?;
     }
     let p = &stats.primary;
     outln!(
@@ -655,7 +679,7 @@ pub fn run(a: &Args) -> CliResult {
         stats.ms,
         stats.rays_per_second / 1e6,
         stats.threads,
-        if stats.pinned_cores.is_empty() {
+        if pinned_cores.is_empty() {
             ""
         } else {
             ", one per core"
@@ -705,6 +729,7 @@ fn walkthrough(
     cache: &Cache,
     cameras: &[Camera],
     opts: &RenderOptions,
+    pinned_cores: &[usize],
 ) -> CliResult {
     let c = cache.get();
     let mut look_ahead = match cache {
@@ -744,6 +769,7 @@ fn walkthrough(
         let next = stats.cache.clone();
         let mut f = FrameFigures::new(i, &file, (stats, step_ms), &before);
         f.prefetch_ms = prefetch_ms;
+        f.pinned_cores = pinned_cores.to_vec();
         before = next;
         let p = &f.primary;
         let prefetched = if look_ahead.is_some() {

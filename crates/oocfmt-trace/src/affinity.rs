@@ -38,34 +38,6 @@ pub fn bind_this_thread(_core: usize) -> bool {
     false
 }
 
-/// The one core the calling thread may run on, if it is bound to one.
-pub fn bound_core() -> Option<usize> {
-    match usable_cores()?.as_slice() {
-        [core] => Some(*core),
-        _ => None,
-    }
-}
-
-/// The cores the current rayon pool's threads are bound to, in the pool's order, when each is
-/// bound to a core of its own; empty otherwise (one thread, threads left to the system, or two
-/// bound to the same core).
-pub fn pool_cores() -> Vec<usize> {
-    if rayon::current_num_threads() < 2 {
-        return Vec::new();
-    }
-    let Some(cores) = rayon::broadcast(|_| bound_core())
-        .into_iter()
-        .collect::<Option<Vec<usize>>>()
-    else {
-        return Vec::new();
-    };
-    if all_distinct(&cores) {
-        cores
-    } else {
-        Vec::new()
-    }
-}
-
 fn all_distinct(cores: &[usize]) -> bool {
     let mut sorted = cores.to_vec();
     sorted.sort_unstable();
@@ -124,6 +96,14 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
 
+    /// The one core the calling thread may run on, if it is bound to one.
+    fn bound_core() -> Option<usize> {
+        match usable_cores()?.as_slice() {
+            [core] => Some(*core),
+            _ => None,
+        }
+    }
+
     #[test]
     fn a_pool_binds_each_thread_to_its_own_core_or_none() {
         let Some(cores) = usable_cores() else {
@@ -135,16 +115,21 @@ mod tests {
             .num_threads(2)
             .build()
             .unwrap();
+        // Each thread's one core, if it is bound to one.
+        let bound = || rayon::broadcast(|_| bound_core());
+        // A process allowed one core has its threads on it from the start.
+        let alone = (cores.len() == 1).then_some(cores[0]);
         pool.install(|| {
-            assert!(
-                pool_cores().is_empty(),
+            assert_eq!(
+                bound(),
+                [alone, alone],
                 "a new pool's threads are not bound"
             );
             // One core for two threads: nothing is bound.
             assert!(bind_pool(&cores[..1]).is_empty());
-            assert!(pool_cores().is_empty());
             // The same core twice: refused as well.
             assert!(bind_pool(&[cores[0], cores[0]]).is_empty());
+            assert_eq!(bound(), [alone, alone]);
             // A core that is not there: the other thread is let go again.
             assert!(bind_pool(&[cores[0], usize::MAX]).is_empty());
             let each = rayon::broadcast(|_| usable_cores());
@@ -152,7 +137,7 @@ mod tests {
             if cores.len() >= 2 {
                 let want = vec![cores[1], cores[0]];
                 assert_eq!(bind_pool(&want), want);
-                assert_eq!(pool_cores(), want);
+                assert_eq!(bound(), [Some(cores[1]), Some(cores[0])]);
             }
         });
         // The test's own thread was never bound.

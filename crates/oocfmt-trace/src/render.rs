@@ -12,7 +12,6 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::affinity;
 use crate::cache::{BlockCache, CacheStats};
 use crate::camera::Camera;
 use crate::error::TraceError;
@@ -140,10 +139,6 @@ pub struct FrameStats {
     /// The LOD constant C = poe · 2 tan(fov_y / 2) / height.
     pub lod_c: f64,
     pub threads: usize,
-    /// The core each render thread is bound to, in the pool's order, when each is bound to a
-    /// core of its own (`oocfmt render --pin` binds them when there are as many as cores); empty when
-    /// the system places them.
-    pub pinned_cores: Vec<usize>,
     pub ms: f64,
     /// Every ray traced: primary, shadow and ambient occlusion.
     pub rays: u64,
@@ -356,7 +351,6 @@ pub fn render(
         poe: opts.poe,
         lod_c,
         threads: rayon::current_num_threads(),
-        pinned_cores: affinity::pool_cores(),
         ms: seconds * 1e3,
         rays,
         rays_per_second: rays as f64 / seconds.max(1e-9),
