@@ -44,6 +44,7 @@ Standard library only.
 """
 
 import argparse
+import hashlib
 import json
 import math
 import os
@@ -54,6 +55,10 @@ from benchlib import ROOT, path_cameras, require_binary, run
 
 
 def render_path(model, cams, work, name, extra):
+    """Renders `cams` as a walkthrough; returns its per-frame figures, each with the digest of
+    its PNG (`png_sha256`). The run's files are deleted at once: a set of runs at 1024x768
+    writes about 770 MiB of PNGs, which would otherwise stay on disk and in the page cache
+    while the later runs are timed (README, "PNGs deleted after each run")."""
     path = os.path.join(work, f"{name}.json")
     with open(path, "w") as f:
         json.dump(cams, f)
@@ -61,7 +66,14 @@ def render_path(model, cams, work, name, extra):
     out = os.path.join(work, f"{name}.png")
     run(["render", model, "-o", out, "--path", path, "--stats-json", stats] + extra)
     with open(stats) as f:
-        return json.load(f)
+        frames = json.load(f)
+    for fr in frames:
+        with open(fr["file"], "rb") as png:
+            fr["png_sha256"] = hashlib.sha256(png.read()).hexdigest()
+        os.remove(fr["file"])
+    os.remove(stats)
+    os.remove(path)
+    return frames
 
 
 # (label, flags): the strategies --strategies compares, the first the default.
@@ -194,11 +206,6 @@ def compare_strategies(a, model, cams, common, size_mb):
         print(f"wrote {a.plot}")
 
 
-def same_png(a, b):
-    with open(a, "rb") as fa, open(b, "rb") as fb:
-        return fa.read() == fb.read()
-
-
 def fisher_greater(a, n1, b, n2):
     """One-sided Fisher's exact test: the chance that a sample of n1 runs out of n1 + n2, of which
     a + b went over, holds a or more of them, if which runs went over had nothing to do with the
@@ -303,8 +310,8 @@ def main():
         warm_passes = [passes[k * frames:(k + 1) * frames] for k in range(fill, fill + a.warm_passes)]
         small_mb = max(1, int(size_mb / 10))
         small = render_path(model, cams, work, "small", common + ["--cache-mb", str(small_mb)])
-        warm_pngs = [f["file"] for f in warm_passes[0]]
-        equal = [[same_png(c["file"], w) for c, w in zip(cold, warm_pngs)] for cold in colds]
+        warm_pngs = [f["png_sha256"] for f in warm_passes[0]]
+        equal = [[c["png_sha256"] == w for c, w in zip(cold, warm_pngs)] for cold in colds]
 
     def total(f):
         return f["ms"] + f["step_ms"]

@@ -53,7 +53,12 @@ def render(model, cams, work, name, extra):
     with open(os.path.join(d, "s.json")) as f:
         frames = json.load(f)
     offset = time.clock_gettime(time.CLOCK_REALTIME) - time.clock_gettime(time.CLOCK_MONOTONIC)
-    written = [os.stat(p).st_mtime_ns / 1e9 - offset for p in sorted(glob.glob(os.path.join(d, "f-*.png")))]
+    pngs = sorted(glob.glob(os.path.join(d, "f-*.png")))
+    written = [os.stat(p).st_mtime_ns / 1e9 - offset for p in pngs]
+    # As in bench-walk.py's render_path: no hundreds of MiB of PNGs left behind while later runs
+    # are traced.
+    for p in pngs:
+        os.remove(p)
     return frames, written
 
 
