@@ -355,9 +355,19 @@ fn render_path_accuracy_is_full_for_blocking_at_poe_0_and_partial_for_a_cold_asy
     for k in ["blocks_missed", "blocks_prefetched", "blocks_prefetch_used"] {
         assert!(first[k].as_u64().is_some(), "{k} in {first}");
     }
-    // The cold walk decodes blocks, so its fetchers spent CPU time on them.
+    // Blocks the fetchers published cost them CPU time. Whether any arrive within three
+    // frames of a tiny model depends on when the machine runs the fetchers (a loaded CI
+    // machine may not before the walk ends), so the figure is checked against the blocks
+    // loaded; `caches.rs` checks it where the fetchers are waited for.
     let fetch_ms: f64 = cold.iter().filter_map(|f| f["fetch_cpu_ms"].as_f64()).sum();
-    assert!(fetch_ms > 0.0, "{fetch_ms}");
+    let loaded: u64 = cold
+        .iter()
+        .filter_map(|f| f["blocks_loaded"].as_u64())
+        .sum();
+    assert!(
+        loaded == 0 || fetch_ms > 0.0,
+        "{loaded} blocks in {fetch_ms} ms"
+    );
     // Without --accuracy there is no such figure.
     let plain = walk_figures(d, "plain", &[]);
     assert!(plain[0].get("accuracy").is_none());

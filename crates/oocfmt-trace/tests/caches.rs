@@ -95,6 +95,8 @@ fn blocking_mmap_and_async_give_the_same_image_at_poe_0() {
         let cache = AsyncCache::new(Arc::clone(&scene), 256 << 20, 2);
         let (c, sc, frames) = converge(&scene, &cache, &cam);
         assert!(frames > 1, "a cold async cache needs more than one frame");
+        // The fetchers decoded the blocks of the frames after the first, on their own CPU.
+        assert!(cache.stats().fetch_cpu_ms > 0.0, "{:?}", cache.stats());
         assert_eq!(sc.primary.voxel + sc.primary.proxy, 0, "{:?}", sc.primary);
         assert!(a.depth.iter().any(|d| d.is_finite()));
         assert_eq!(a.rgb, b.rgb, "mmap differs from blocking");
