@@ -7,9 +7,10 @@ mod common;
 use oocfmt_trace::intersect::Ray;
 use proptest::prelude::*;
 
-/// The f64 reference: barycentric weights and distance by Cramer's rule, or None when the
-/// ray is (nearly) parallel to the plane.
-fn reference(o: [f64; 3], d: [f64; 3], p: [[f64; 3]; 3]) -> Option<(f64, [f64; 3])> {
+/// The f64 reference: barycentric weights, distance by Cramer's rule and the cosine of the
+/// angle between the ray and the triangle's normal, or None when the ray is (nearly)
+/// parallel to the plane.
+fn reference(o: [f64; 3], d: [f64; 3], p: [[f64; 3]; 3]) -> Option<(f64, [f64; 3], f64)> {
     let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     let cross = |a: [f64; 3], b: [f64; 3]| {
         [
@@ -31,7 +32,9 @@ fn reference(o: [f64; 3], d: [f64; 3], p: [[f64; 3]; 3]) -> Option<(f64, [f64; 3
     let q = cross(tv, e1);
     let v = dot(d, q) / det;
     let t = dot(e2, q) / det;
-    Some((t, [1.0 - u - v, u, v]))
+    let n = cross(e1, e2);
+    let cos = det.abs() / (dot(n, n) * dot(d, d)).sqrt();
+    Some((t, [1.0 - u - v, u, v], cos))
 }
 
 fn coord() -> impl Strategy<Value = f32> {
@@ -57,12 +60,15 @@ proptest! {
         let ray = Ray::new(o, d);
         let got = ray.triangle(&a, &b, &c);
         let f = |p: [f32; 3]| p.map(f64::from);
-        let Some((t, bary)) = reference(f(o), f(d), [f(a), f(b), f(c)]) else {
+        let Some((t, bary, cos)) = reference(f(o), f(d), [f(a), f(b), f(c)]) else {
             return Ok(());
         };
-        // Near an edge, or at a grazing angle, or at t ≈ 0 rounding decides: not compared.
+        // Near an edge, or at a grazing angle, or at t ≈ 0 rounding decides: not compared. At
+        // a grazing angle the f32 kernel's rounding moves the hit along the ray by about its
+        // error over the cosine (a ray 1.5e-6 off the plane met it at t 1.037 against the
+        // reference's 1.029); 1e-3 keeps that under the 1e-3 the distances are held to.
         let band = 1e-4;
-        if bary.iter().any(|x| x.abs() < band) || t.abs() < band {
+        if bary.iter().any(|x| x.abs() < band) || t.abs() < band || cos < 1e-3 {
             return Ok(());
         }
         let inside = bary.iter().all(|&x| x > 0.0) && t > 0.0;
