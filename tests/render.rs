@@ -77,6 +77,16 @@ fn render_writes_a_png_a_depth_pfm_and_stats() {
     assert!(stats["cache"]["blocks_loaded"].as_u64().unwrap() > 0);
 }
 
+/// A frame's or still image's `pinned_cores`.
+fn pinned_of(stats: &serde_json::Value) -> Vec<u64> {
+    stats["pinned_cores"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_u64().unwrap())
+        .collect()
+}
+
 /// The stats' `pinned_cores` of `render mb.oocf ARGS`, and the PNG's bytes.
 fn pinned_and_png(d: &Path, args: &[&str]) -> (Vec<u64>, Vec<u8>) {
     let mut all = vec![
@@ -93,13 +103,7 @@ fn pinned_and_png(d: &Path, args: &[&str]) -> (Vec<u64>, Vec<u8>) {
     ok_(&oocfmt(&all, d));
     let stats: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("pin.json")).unwrap()).unwrap();
-    let cores = stats["pinned_cores"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c.as_u64().unwrap())
-        .collect();
-    (cores, std::fs::read(d.join("pin.png")).unwrap())
+    (pinned_of(&stats), std::fs::read(d.join("pin.png")).unwrap())
 }
 
 #[test]
@@ -130,13 +134,7 @@ fn render_pin_binds_one_thread_per_core() {
     )
     .unwrap();
     for f in walk_figures(d, "walk", &["--pin"]) {
-        let cores: Vec<u64> = f["pinned_cores"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|c| c.as_u64().unwrap())
-            .collect();
-        assert_eq!(cores, pinned);
+        assert_eq!(pinned_of(&f), pinned);
     }
     // --pin that binds nothing says so.
     let o = oocfmt(
