@@ -168,7 +168,7 @@ fn block_decode(c: &mut Criterion, scene: &Scene) {
     g.throughput(Throughput::Bytes(treelets.data.len() as u64));
     g.bench_function("treelet block -> TreeletData", |b| {
         b.iter(|| {
-            TreeletData::decode(black_box(&treelets))
+            TreeletData::decode(black_box(&treelets), r.entries())
                 .unwrap()
                 .node_count()
         })

@@ -8,7 +8,7 @@ use oocfmt::records::{
     lod_child_treelets, LodEntry, Node, Sample, TreeletBlock, TriangleBlock, Voxel, NODE_BASIC_LEN,
     NO_PROXY,
 };
-use oocfmt::{Block, Code, Error, Result};
+use oocfmt::{Block, BlockEntry, BlockKind, Code, Error, Result};
 
 /// No child in [`NodeView::Inner`], no treelet in [`Lod`].
 pub const NONE: u32 = u32::MAX;
@@ -230,28 +230,38 @@ impl Scratch {
 }
 
 impl TreeletData {
-    /// Decodes for voxels when the block's file has them, else for R-LODs.
-    pub fn decode(block: &Block) -> Result<TreeletData> {
+    /// Decodes for voxels when the block's file has them, else for R-LODs. `directory` is the
+    /// file's: each LOD node's child block must be a treelet block of the next level there.
+    pub fn decode(block: &Block, directory: &[BlockEntry]) -> Result<TreeletData> {
         let kind = if block.lod.voxel {
             LodKind::Voxel
         } else {
             LodKind::Rlod
         };
-        Self::decode_as(block, kind)
+        Self::decode_as(block, kind, directory)
     }
 
     /// Decodes the LOD nodes' `kind` (an error when the file lacks it).
-    pub fn decode_as(block: &Block, kind: LodKind) -> Result<TreeletData> {
+    pub fn decode_as(
+        block: &Block,
+        kind: LodKind,
+        directory: &[BlockEntry],
+    ) -> Result<TreeletData> {
         SCRATCH.with(|scratch| match scratch.try_borrow_mut() {
-            Ok(mut s) => Self::decode_with(block, kind, &mut s),
+            Ok(mut s) => Self::decode_with(block, kind, directory, &mut s),
             // Only a decode inside a decode would find it taken; none does.
-            Err(_) => Self::decode_with(block, kind, &mut Scratch::default()),
+            Err(_) => Self::decode_with(block, kind, directory, &mut Scratch::default()),
         })
     }
 
     /// One walk over the block builds every array; the right children, which preorder puts
     /// after their subtree's left half, are filled in after it.
-    fn decode_with(block: &Block, kind: LodKind, s: &mut Scratch) -> Result<TreeletData> {
+    fn decode_with(
+        block: &Block,
+        kind: LodKind,
+        directory: &[BlockEntry],
+        s: &mut Scratch,
+    ) -> Result<TreeletData> {
         let tb = block.treelets()?;
         s.reset(tb.node_area().len() / 8);
         tb.walk_lods(|_, pos, node, entry| {
@@ -288,6 +298,7 @@ impl TreeletData {
                     voxel_offset: _,
                     proxy,
                 } => {
+                    check_link(directory, block.entry.level, child_block, pos)?;
                     let lod = s.lods.len();
                     let (radius, at) = look(kind, entry, radius, s, pos)?;
                     let [left, right] =
@@ -478,6 +489,34 @@ fn look(
             Ok((r.error_radius(radius), at))
         }
     }
+}
+
+/// The rule that ends every path of LOD links (spec §12, "Following LOD links"): the child
+/// block of a LOD node at byte `pos` of a block of `level` is a treelet block of `level` + 1.
+/// Without it a link back into the same level is a cycle, and a ray would descend for ever.
+fn check_link(directory: &[BlockEntry], level: u16, child_block: u32, pos: usize) -> Result<()> {
+    let Some(child) = directory
+        .get(child_block as usize)
+        .filter(|c| c.kind == BlockKind::Treelet)
+    else {
+        return Err(Error::malformed(
+            Code::TreeReference,
+            format!("a LOD node's child block {child_block} is not a treelet block"),
+        )
+        .at(pos as u64));
+    };
+    if u32::from(child.level) != u32::from(level) + 1 {
+        return Err(Error::malformed(
+            Code::TreeLevel,
+            format!(
+                "a LOD node's child block {child_block} has level {}, not {}",
+                child.level,
+                u32::from(level) + 1
+            ),
+        )
+        .at(pos as u64));
+    }
+    Ok(())
 }
 
 fn not_a_node(node: usize, which: &str, child: usize) -> Error {

@@ -280,6 +280,8 @@ impl Tracer<'_> {
         });
         let mut lasts = ArrayVec::<LastVoxels<'m, N>, { MAX_TREE_DEPTH as usize }>::new();
         let mut visited = 0u64;
+        // Nodes the packet visited, held to the tracer's bound as a single ray's are.
+        let mut steps = 0u64;
         // A ray that found `found` on the current path keeps it when it is nearer.
         let offer = |best: &mut [Best<'m>; N],
                      best_t: &mut [f32; N],
@@ -292,7 +294,7 @@ impl Tracer<'_> {
                 }
             }
         };
-        while let Some(e) = stack.pop() {
+        'packet: while let Some(e) = stack.pop() {
             let mut beyond: Mask = 0;
             for i in 0..N {
                 beyond |= Mask::from(e.t0[i] > best_t[i] + lanes.eps[i]) << i;
@@ -313,6 +315,10 @@ impl Tracer<'_> {
             lasts.truncate(usize::from(lods));
             while let Some(n) = at.data.node(at.node) {
                 visited += rays_in::<N>(at.active);
+                steps += 1;
+                if steps > self.max_visits {
+                    break 'packet;
+                }
                 let (s, first, second, next) = match n {
                     NodeView::Inner {
                         axis: a,

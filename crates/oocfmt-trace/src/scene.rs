@@ -4,7 +4,7 @@ use std::path::Path;
 
 use oocfmt::metadata::Metadata;
 use oocfmt::records::ProxyRecord;
-use oocfmt::{ReadOptions, Reader};
+use oocfmt::{BlockKind, ReadOptions, Reader};
 
 use crate::blocks::{LodKind, TreeletData, TriangleData};
 use crate::error::TraceError;
@@ -14,6 +14,8 @@ pub struct Scene {
     attrs: u16,
     /// The LOD representation the traversal stops on.
     lod: LodKind,
+    /// See [`Scene::node_bound`].
+    node_bound: u64,
 }
 
 impl Scene {
@@ -32,7 +34,26 @@ impl Scene {
         } else {
             LodKind::Rlod
         };
-        Scene { reader, attrs, lod }
+        let node_bound = reader
+            .entries()
+            .iter()
+            .filter(|e| e.kind == BlockKind::Treelet)
+            .map(|e| u64::from(e.raw_length) / 8)
+            .sum();
+        Scene {
+            reader,
+            attrs,
+            lod,
+            node_bound,
+        }
+    }
+
+    /// How many nodes the file's treelet blocks can hold (8 bytes is the smallest node): the
+    /// most a ray meets in a well-formed tree, where it meets each node once at most. The
+    /// traversal ends a ray there, so that a file whose treelets are shared cannot make one
+    /// ray's work grow without bound (spec §12, "Following LOD links").
+    pub fn node_bound(&self) -> u64 {
+        self.node_bound
     }
 
     /// Stops on `lod`; an error when the file's LOD nodes do not carry it. Set it before any
@@ -77,7 +98,11 @@ impl Scene {
 
     /// Reads, checks and decodes treelet block `id`.
     pub fn load_treelets(&self, id: u32) -> oocfmt::Result<TreeletData> {
-        TreeletData::decode_as(&self.reader.read_block(id)?, self.lod)
+        TreeletData::decode_as(
+            &self.reader.read_block(id)?,
+            self.lod,
+            self.reader.entries(),
+        )
     }
 
     /// Reads, checks and decodes triangle block `id`.

@@ -186,6 +186,9 @@ pub struct Tracer<'a> {
     eps: f32,
     /// The LOD constant C (see the module comment); 0 never stops at a voxel.
     pub(crate) lod_c: f32,
+    /// The most nodes a ray (or a packet) visits: as many as the file's treelet blocks can
+    /// hold ([`Scene::node_bound`]). A well-formed tree never reaches it.
+    pub(crate) max_visits: u64,
 }
 
 /// One side of a split: left or right child, interval, entry axis.
@@ -253,6 +256,7 @@ impl<'a> Tracer<'a> {
             } else {
                 0.0
             },
+            max_visits: scene.node_bound(),
         }
     }
 
@@ -286,7 +290,7 @@ impl<'a> Tracer<'a> {
         let mut best = Best::None;
         let mut best_t = t_max;
         let mut visited = 0u64;
-        while let Some(e) = stack.pop() {
+        'ray: while let Some(e) = stack.pop() {
             if e.t0 > best_t + eps {
                 continue;
             }
@@ -301,6 +305,11 @@ impl<'a> Tracer<'a> {
             lasts.truncate(usize::from(lods));
             while let Some(n) = data.node(node) {
                 visited += 1;
+                // Each node of a tree has one parent, so a ray meets it once at most; past
+                // that, treelets are shared and the paths may be too many to walk (spec §12).
+                if visited > self.max_visits {
+                    break 'ray;
+                }
                 match n {
                     NodeView::Inner {
                         axis: a,
