@@ -360,15 +360,19 @@ pub fn reseal_with_blocks(data: &[u8]) -> Option<Vec<u8>> {
         else {
             break;
         };
-        let (Some(offset), Some(stored)) = (
-            u64_at(&f, at + directory::OFF_OFFSET),
-            u32_at(&f, at + directory::OFF_STORED_LENGTH),
+        // The directory offset comes from the file: an entry near the end of the address
+        // space has no fields.
+        let field = |off: usize| at.checked_add(off);
+        let (Some(offset), Some(stored), Some(crc_at)) = (
+            field(directory::OFF_OFFSET).and_then(|p| u64_at(&f, p)),
+            field(directory::OFF_STORED_LENGTH).and_then(|p| u32_at(&f, p)),
+            field(directory::OFF_CRC),
         ) else {
             break;
         };
         if let Some(bytes) = region(&f, offset, u64::from(stored)) {
             let c = crc32c(bytes);
-            put_u32(&mut f, at + directory::OFF_CRC, c);
+            put_u32(&mut f, crc_at, c);
         }
     }
     reseal(&f)

@@ -29,6 +29,8 @@ fn run_target(target: &str, data: &[u8]) -> TestResult {
         "block_decode" => props::block_decode(data),
         "treelet_decode" => props::treelet_decode(data),
         "triangle_decode" => props::triangle_decode(data),
+        // The tracer's target: `crates/oocfmt-trace/tests/fuzz_corpus.rs` replays it.
+        "render_file" => {}
         other => return Err(format!("unknown fuzz target directory {other}").into()),
     }
     Ok(())

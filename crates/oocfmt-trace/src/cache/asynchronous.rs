@@ -383,10 +383,13 @@ impl AsyncCache {
     /// that want a still image to converge (tests, a single-frame render); render threads
     /// never call it.
     pub fn wait_for_fetchers(&self) {
+        let mut q = lock(&self.shared.queue);
         // A caller that waits wants every block now: no per-frame limit until the next step.
+        // Lifted under the queue's lock, which a fetcher holds from finding no room until it
+        // waits for work: lifted outside it, the wake-up could come before that wait, and the
+        // fetcher would sleep through it while this waits for it for ever.
         self.shared.fetch_allowed_ns.store(u64::MAX, Relaxed);
         self.shared.work.notify_all();
-        let mut q = lock(&self.shared.queue);
         while !q.shutdown && (!q.ids.is_empty() || q.in_flight > 0 || self.prefetch_waits(&q)) {
             q = self
                 .shared
@@ -401,6 +404,9 @@ impl AsyncCache {
     /// per-frame limit, and what they spend does not count against the frame. Render threads
     /// never call it; a walkthrough calls it after each step.
     pub fn idle(&self) {
+        // Under the queue's lock, as in `wait_for_fetchers`: a fetcher that found no room must
+        // not miss the wake-up (it would sleep through the idle spell).
+        let _q = lock(&self.shared.queue);
         self.shared.idle.store(true, Relaxed);
         self.shared.work.notify_all();
     }
