@@ -691,7 +691,8 @@ fn fetch_loop(s: &Shared) {
                 // Within the frame's fetch budget: demand first, then prefetches within their
                 // own budget, then reading ahead into free room. The budget is checked and
                 // waited on under the queue's lock, so whoever lifts it (`wait_for_fetchers`,
-                // `idle`, the step between frames) must change it under that lock too.
+                // `idle`, the step between frames) must take that lock after the change and
+                // before the wake-up, or a fetcher between its check and its wait misses it.
                 if !s.fetch_room() {
                     q = s.work.wait(q).unwrap_or_else(PoisonError::into_inner);
                     continue;
