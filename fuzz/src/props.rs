@@ -3,7 +3,7 @@
 //! call it through the `oocfmt_fuzz` library, and `crates/oocfmt/tests/fuzz_corpus.rs` includes it
 //! by path (`#[path]`), so `cargo test` replays every corpus and regression input on stable.
 //!
-//! Checksums are skipped explicitly (as the `fuzzing` feature of `oocfmt` also forces) so the
+//! Checksums are skipped explicitly (as a `--cfg fuzzing` build of `oocfmt` also forces) so the
 //! replay test, built without that feature, runs exactly the code the fuzzer runs.
 //!
 //! Only the public API of `oocfmt` is used, and nothing here may panic except the `assert!`s

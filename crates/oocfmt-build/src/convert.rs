@@ -7,13 +7,13 @@ use std::time::Instant;
 
 use oocfmt::{BlockKind, ReadOptions, Reader};
 
-use crate::import::{self, ImportError, Recentre, TriangleSink};
 use crate::kdtree::{self, KdBuildOptions, KdError};
 use crate::layout::{build_blocks, write_blocks, LayoutError, LayoutOptions};
-use crate::ooc::soup::SoupSink;
+use crate::ooc::soup::{finish_soup, soup_sink};
 use crate::ooc::{self, OocError};
 use crate::progress::Progress;
 use crate::report::{peak_memory, BlockStats, ConvertReport, PhaseTime};
+use oocfmt_meshio::import::{self, ImportError, Recentre, TriangleSink};
 
 /// Bytes of memory the in-core build needs per input triangle, for the worst scene measured:
 /// peak RSS over triangle count of release `oocfmt convert` runs was 336–369 B on generated
@@ -148,7 +148,7 @@ pub fn convert(
             source,
         })?;
     let chunk_triangles = opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE;
-    let mut sink = SoupSink::create(
+    let mut sink = soup_sink(
         &spill.path().join("import.soup"),
         opts.strict,
         Some(chunk_triangles),
@@ -160,7 +160,7 @@ pub fn convert(
         progress.advance(i as u64 + 1);
     }
     progress.finish_phase();
-    let mut soup = sink.finish()?;
+    let mut soup = finish_soup(sink)?;
     phases.done("import");
     let mut import_report = soup.report.clone();
     if let Some(w) = precision_warning(&import_report, &soup.bounds) {
@@ -226,7 +226,7 @@ pub fn convert(
 /// size: a model far from its origin, which `--recentre auto` would have kept exact.
 fn precision_warning(
     report: &import::ImportReport,
-    bounds: &crate::mesh::Bounds,
+    bounds: &oocfmt_meshio::mesh::Bounds,
 ) -> Option<String> {
     let extent = (0..3)
         .map(|a| f64::from(bounds.max[a]) - f64::from(bounds.min[a]))

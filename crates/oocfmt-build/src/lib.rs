@@ -1,20 +1,35 @@
-//! `oocfmt-build`: turns a triangle mesh into an `.oocf` container.
+//! `oocfmt-build`: turns triangles into an `.oocf` container.
 //!
-//! The stages are independent so each can be replaced on its own: [`mesh`] holds the input,
-//! [`kdtree`] builds the tree, [`lod`] estimates voxels and proxies, and [`layout`] cuts the
-//! tree into treelets, packs blocks and writes the file. [`gen`] makes demo scenes and
-//! [`vectors`] the spec's test vectors.
+//! [`convert`] is the whole job (import, build in core or out of core, write) with a
+//! [`report::ConvertReport`]. Its stages are independent so each can be replaced on its own:
+//! [`kdtree`] builds the tree, [`lod`] estimates voxels, proxies and R-LODs, [`layout`] cuts the
+//! tree into treelets, packs blocks and writes the file, and [`ooc`] builds a scene larger than
+//! memory in chunks. The meshes come from `oocfmt-meshio`.
+//!
+//! ```
+//! use oocfmt_build::kdtree::{self, KdBuildOptions};
+//! use oocfmt_build::layout::{write_container, LayoutOptions};
+//! use oocfmt_meshio::Mesh;
+//!
+//! let mesh = Mesh::new(
+//!     vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]],
+//!     vec![[0, 1, 2], [1, 3, 2]],
+//! );
+//! let tree = kdtree::build(&mesh, &KdBuildOptions::default())?;
+//! let dir = tempfile::tempdir()?;
+//! let out = dir.path().join("quad.oocf");
+//! write_container(&out, &mesh, &tree, &LayoutOptions::default())?;
+//! assert!(oocfmt::Reader::open(&out, oocfmt::ReadOptions::default()).is_ok());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+#![forbid(unsafe_code)]
 
 pub mod convert;
-pub mod export;
-pub mod gen;
-pub mod import;
 pub mod kdtree;
 pub mod layout;
 pub mod lod;
-pub mod mesh;
 pub mod ooc;
 pub mod progress;
 pub mod raycast;
 pub mod report;
-pub mod vectors;

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use crate::import::ImportReport;
+use oocfmt_meshio::import::ImportReport;
 
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct PhaseTime {

@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use oocfmt_build::convert::{convert, ConvertError, ConvertOptions, BYTES_PER_TRIANGLE_IN_CORE};
-use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
 use oocfmt_build::progress::NoProgress;
+use oocfmt_scenes::mandelbulb::{self, MandelbulbOptions};
 
 fn options(chunk_triangles: u64) -> ConvertOptions {
     ConvertOptions {

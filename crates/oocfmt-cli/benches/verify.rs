@@ -7,9 +7,9 @@ use std::path::{Path, PathBuf};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use oocfmt::verify::{verify, Depth, VerifyOptions};
 use oocfmt::{Codec, FileSource, ReadOptions, Reader, WriteOptions};
-use oocfmt_build::gen::demo::demo_scene;
 use oocfmt_build::kdtree::{self, KdBuildOptions};
 use oocfmt_build::layout::{write_container, LayoutOptions};
+use oocfmt_scenes::demo::demo_scene;
 
 const TRIANGLES: usize = 400_000;
 

@@ -5,12 +5,12 @@ use std::path::PathBuf;
 use oocfmt::records::LodKinds;
 use oocfmt::{Codec, WriteOptions};
 use oocfmt_build::convert::{convert, ConvertError, ConvertOptions, MIN_MEM_LIMIT};
-use oocfmt_build::import::gltf::GltfOptions;
-use oocfmt_build::import::obj::ObjOptions;
-use oocfmt_build::import::{Recentre, Skipped};
 use oocfmt_build::kdtree::KdBuildOptions;
 use oocfmt_build::layout::LayoutOptions;
 use oocfmt_build::report::{total_memory, ConvertReport};
+use oocfmt_meshio::import::gltf::GltfOptions;
+use oocfmt_meshio::import::obj::ObjOptions;
+use oocfmt_meshio::import::{Recentre, Skipped};
 
 use crate::error::{to_json, CliError, CliResult};
 use crate::out::out;
@@ -149,7 +149,7 @@ pub fn run(a: &Args) -> CliResult {
     };
     let mut progress = Phases::new(a.quiet);
     let report = convert(&a.inputs, &a.output, &opts, &mut progress).map_err(|e| match e {
-        ConvertError::Import(oocfmt_build::import::ImportError::Io { path, source }) => {
+        ConvertError::Import(oocfmt_meshio::import::ImportError::Io { path, source }) => {
             CliError::Io { path, source }
         }
         ConvertError::UnknownFormat(path) => CliError::Usage(format!(

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use oocfmt_build::export::{write_obj, write_ply, ExportError, ExportOptions};
+use oocfmt_meshio::export::{write_obj, write_ply, ExportError, ExportOptions};
 
 use crate::error::{to_json, CliError, CliResult};
 use crate::out::outln;

@@ -2,9 +2,9 @@
 
 use std::path::PathBuf;
 
-use oocfmt_build::gen::cad::{self, CadOptions};
-use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
-use oocfmt_build::gen::obj_writer::GenReport;
+use oocfmt_scenes::cad::{self, CadOptions};
+use oocfmt_scenes::mandelbulb::{self, MandelbulbOptions};
+use oocfmt_scenes::GenReport;
 
 use crate::error::{to_json, CliError, CliResult};
 use crate::out::outln;

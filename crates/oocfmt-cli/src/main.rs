@@ -3,6 +3,8 @@
 //! Exit status: 0 success (for `verify`: the file is valid); 1 the file is invalid or a format
 //! error stopped the command; 2 the command could not run (bad usage, I/O error).
 
+#![forbid(unsafe_code)]
+
 mod accuracy;
 mod convert;
 mod curve;

@@ -3,6 +3,8 @@
 //! [`cache::BlockCache`] hands decoded blocks to the traversal; [`render::render`] makes one
 //! frame.
 
+#![forbid(unsafe_code)]
+
 pub mod affinity;
 pub mod blocks;
 pub mod cache;

@@ -14,10 +14,10 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use oocfmt_build::convert::{convert, ConvertOptions};
-use oocfmt_build::gen::cad::{self, CadOptions};
-use oocfmt_build::gen::rng::Rng;
-use oocfmt_build::import::Recentre;
 use oocfmt_build::progress::NoProgress;
+use oocfmt_meshio::import::Recentre;
+use oocfmt_scenes::cad::{self, CadOptions};
+use oocfmt_scenes::rng::Rng;
 use oocfmt_trace::blocks::{NodeView, TreeletData};
 use oocfmt_trace::intersect::{ray_box, Ray};
 use oocfmt_trace::traverse::{Memo, Tracer};

@@ -16,8 +16,8 @@ use std::sync::{Arc, Mutex};
 
 use oocfmt::records::LodKinds;
 use oocfmt::WriteOptions;
-use oocfmt_build::gen::rng::Rng;
 use oocfmt_build::layout::LayoutOptions;
+use oocfmt_scenes::rng::Rng;
 use oocfmt_trace::blocks::{LodKind, NodeView, TreeletData, TriangleData};
 use oocfmt_trace::cache::{CacheStats, Wish};
 use oocfmt_trace::intersect::Ray;

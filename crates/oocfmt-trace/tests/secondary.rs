@@ -9,7 +9,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use oocfmt_build::gen::rng::Rng;
+use oocfmt_scenes::rng::Rng;
 use oocfmt_trace::intersect::Ray;
 use oocfmt_trace::light::Shadows;
 use oocfmt_trace::occlusion::{ao_lod_c, Occlusion};

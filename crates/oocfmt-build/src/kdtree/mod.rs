@@ -10,7 +10,7 @@ pub(crate) use sah::clip_triangle;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::mesh::{Bounds, Mesh, MeshError};
+use oocfmt_meshio::mesh::{Bounds, Mesh, MeshError};
 
 /// The spec's limit on triangles per leaf (a 12-bit field).
 pub const MAX_LEAF_TRIANGLES: u32 = oocfmt::records::MAX_LEAF_TRIANGLES as u32;

@@ -9,7 +9,7 @@
 use rayon::prelude::*;
 
 use super::{KdBuildOptions, KdError, KdNode, NodeId, MAX_LEAF_TRIANGLES};
-use crate::mesh::{Bounds, Mesh};
+use oocfmt_meshio::mesh::{Bounds, Mesh};
 
 /// Subtrees of at least this many references build their two sides in parallel; below it the
 /// cost of a task and of copying the subtree's nodes into the parent's array would dominate.

@@ -1,6 +1,6 @@
 use super::*;
-use crate::gen::demo_scene;
 use crate::raycast::{first_hit_of, Prepared, Ray, Tracer};
+use oocfmt_scenes::demo_scene;
 
 /// A row of `n` unit squares along x, two triangles each.
 fn strip(n: u32) -> Mesh {

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use crate::kdtree::{KdError, KdTree};
 use crate::lod::{DEFAULT_VOXEL_THRESHOLD, LOD_SAMPLING, RLOD_FIT};
-use crate::mesh::{Mesh, MeshError};
+use oocfmt_meshio::mesh::{Mesh, MeshError};
 use plan::{Role, TreePlan};
 use triangles::{LeafRef, TriangleCounts, VertexTable};
 

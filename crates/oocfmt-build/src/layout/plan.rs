@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use super::LayoutError;
 use crate::kdtree::{KdNode, KdTree, NodeId};
 use crate::lod::LodData;
-use crate::mesh::{Bounds, Mesh};
+use oocfmt_meshio::mesh::{Bounds, Mesh};
 
 /// The largest node area a treelet may have: child offsets are 12-bit counts of 8-byte units.
 const MAX_TREELET_NODE_BYTES: usize = 8 * 4096;

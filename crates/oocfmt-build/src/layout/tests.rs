@@ -9,8 +9,8 @@ use oocfmt::records::{Node, TreeletBlock, NO_PROXY};
 use oocfmt::{BlockKind, Codec, ReadOptions, Reader, WriteOptions};
 
 use super::*;
-use crate::gen::demo_scene;
 use crate::kdtree::{build, KdBuildOptions, KdNode, NodeId};
+use oocfmt_scenes::demo_scene;
 
 type Res<T> = std::result::Result<T, String>;
 
@@ -446,28 +446,6 @@ fn a_lone_leaf_and_an_empty_mesh_are_valid_containers() -> Res<()> {
 }
 
 #[test]
-fn leaves_sharing_triangles_store_them_once_per_block() -> Res<()> {
-    let mesh = crate::vectors::quad_mesh();
-    let tree = crate::vectors::quad_tree(&mesh).map_err(s)?;
-    let container = build_blocks(&mesh, &tree, &opts(4096, Codec::None, 3)).map_err(s)?;
-    let c = container.metadata.counts;
-    assert_eq!(
-        (
-            c.triangles,
-            c.triangle_records,
-            c.vertices,
-            c.basic_nodes,
-            c.leaves,
-            c.depth
-        ),
-        (2, 2, 4, 1, 2, 2)
-    );
-    let kinds: Vec<BlockKind> = container.blocks.iter().map(|b| b.kind).collect();
-    assert_eq!(kinds, vec![BlockKind::Treelet, BlockKind::Triangle]);
-    Ok(())
-}
-
-#[test]
 fn impossible_layouts_are_refused_with_a_reason() -> Res<()> {
     // 300 separate triangles in one leaf cannot fit a 4 KiB triangle block.
     let positions: Vec<[f32; 3]> = (0..900).map(|i| [i as f32, (i % 3) as f32, 0.0]).collect();
@@ -512,7 +490,7 @@ fn impossible_layouts_are_refused_with_a_reason() -> Res<()> {
     );
 
     // A tree built for another mesh is refused rather than laid out wrongly.
-    let other = crate::vectors::quad_mesh();
+    let other = oocfmt_scenes::vectors::quad_mesh();
     assert!(matches!(
         build_blocks(&other, &tree, &opts(4096, Codec::None, 3)),
         Err(LayoutError::Tree(_))

@@ -10,7 +10,7 @@ use oocfmt::records::{Triangle, Vertex};
 
 use super::LayoutError;
 use crate::kdtree::{KdNode, KdTree};
-use crate::mesh::Mesh;
+use oocfmt_meshio::mesh::Mesh;
 
 /// Where a leaf's list entries live.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -362,8 +362,8 @@ mod tests {
     use oocfmt::records::triangle::ATTR_NORMALS;
 
     use super::*;
-    use crate::gen::demo::demo_scene;
     use crate::kdtree::{build, KdBuildOptions};
+    use oocfmt_scenes::demo::demo_scene;
 
     /// The greedy packing written plainly, with sets of stored vertices: the blocks the
     /// stamped planner must reproduce.

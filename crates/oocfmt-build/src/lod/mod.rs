@@ -20,8 +20,8 @@ use oocfmt::records::{ProxyRecord, Rlod, Sample, Voxel};
 use rayon::prelude::*;
 
 use crate::kdtree::{KdNode, KdTree, NodeId};
-use crate::mesh::{Bounds, Mesh};
 use crate::raycast::{cross, dot, normalise, sub, triangle_corners, Prepared, Tracer};
+use oocfmt_meshio::mesh::{Bounds, Mesh};
 pub(crate) use sampling::shade;
 pub use sampling::{
     Oracle, Shade, DIAGONAL_RAYS_MAX, DIAGONAL_RAYS_MIN, FACE_RAYS_BASE, FACE_RAYS_MAX,

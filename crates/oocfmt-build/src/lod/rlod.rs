@@ -7,8 +7,8 @@
 use oocfmt::records::Rlod;
 
 use super::{material_colour, vertex_colour};
-use crate::mesh::{Bounds, Mesh};
 use crate::raycast::{cross, dot, normalise, sub};
+use oocfmt_meshio::mesh::{Bounds, Mesh};
 
 /// Expansion past the cell on top of the deviation, in node radii: neighbouring coplanar
 /// planes meet at the shared face only up to rounding, and this covers it (spec §6.4).
@@ -448,7 +448,7 @@ fn unit_or_z(a: [f64; 3]) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gen::rng::Rng;
+    use oocfmt_scenes::rng::Rng;
 
     fn cell(lo: f32, hi: f32) -> Bounds {
         Bounds {

@@ -5,10 +5,10 @@ use oocfmt::records::{Sample, Voxel, PROXY_DIRECTIONS};
 
 use super::halton;
 use crate::kdtree::NodeId;
-use crate::mesh::{Bounds, Mesh};
 use crate::raycast::{
     clip_to_box, cross, dot, first_hit_of, normalise, sub, Hit, Prepared, Ray, Tracer, PACKET_MAX,
 };
+use oocfmt_meshio::mesh::{Bounds, Mesh};
 
 /// Rays per voxel face: one per `TRIANGLES_PER_FACE_RAY` subtree triangles, clamped to
 /// `MIN ..= BASE`, and up to `MAX` when the first `BASE` leave the face's mean uncertain (a

@@ -269,7 +269,7 @@ fn a_sliver_the_rays_miss_still_gets_a_voxel() {
 
 #[test]
 fn lod_data_is_the_same_whatever_the_thread_count() {
-    let mesh = crate::gen::demo_scene(30_000);
+    let mesh = oocfmt_scenes::demo_scene(30_000);
     let tree = tree_of(&mesh, 8);
     let inner: Vec<NodeId> = (0..tree.nodes().len() as u32)
         .map(NodeId)
@@ -305,7 +305,7 @@ fn the_recorded_sampling_matches_the_ray_counts() {
 
 #[test]
 fn subtree_totals_match_a_walk_of_every_subtree() {
-    let mesh = crate::gen::demo::demo_scene(3000);
+    let mesh = oocfmt_scenes::demo::demo_scene(3000);
     let tree = tree_of(&mesh, 4);
     let areas: Vec<f64> = (0..mesh.triangles.len())
         .map(|t| triangle_area(&mesh, t))

@@ -12,7 +12,6 @@ use oocfmt::BlockKind;
 use super::soup::SoupReader;
 use super::split::Chunk;
 use super::OocError;
-use crate::import::{InputTriangle, Location, MeshSink, PartSchema, TriangleSink};
 use crate::kdtree::{build_cell, KdBuildOptions, KdNode, KdTree, NodeId};
 use crate::layout::plan::{plan_tree_with, LodSource, PlanSpec, Role, TreePlan};
 use crate::layout::treelets::encode_treelets;
@@ -22,8 +21,9 @@ use crate::layout::triangles::{
 use crate::layout::{LayoutError, LayoutOptions};
 use crate::lod::rlod::{Deviation, PlaneFit};
 use crate::lod::{mean_vertex_colour, shade, triangle_area, LodData, Shade};
-use crate::mesh::{Bounds, Mesh};
 use crate::raycast::{clip_to_box, Ray, Tracer};
+use oocfmt_meshio::import::{InputTriangle, Location, MeshSink, PartSchema, TriangleSink};
+use oocfmt_meshio::mesh::{Bounds, Mesh};
 use std::collections::BTreeMap;
 
 use oocfmt::records::{Rlod, Voxel};

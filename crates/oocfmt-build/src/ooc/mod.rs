@@ -23,7 +23,6 @@ use rustc_hash::FxHashMap;
 use oocfmt::metadata::{Build, Counts, Provenance, Scene, Schema, TreeletRef};
 use oocfmt::{BlockKind, Metadata, WriteSummary};
 
-use crate::import::{compact_materials, InputTriangle, PartSchema};
 use crate::kdtree::{KdBuildOptions, KdError, NodeId};
 use crate::layout::lod_params;
 use crate::layout::plan::{plan_tree_with, LodSource, PlanSpec};
@@ -33,6 +32,7 @@ use crate::layout::{LayoutError, LayoutOptions, RawBlock};
 use crate::lod::rlod::PlaneFit;
 use crate::progress::Progress;
 use chunk::{build_chunk, BlockSpill, ChunkCounts, ChunkOut, SceneFacts};
+use oocfmt_meshio::import::{compact_materials, InputTriangle, PartSchema};
 use soup::Soup;
 
 #[derive(Debug, thiserror::Error)]
@@ -45,7 +45,7 @@ pub enum OocError {
     #[error("spill file {path}: {len} bytes, expected {count} records")]
     SpillLength { path: String, len: u64, count: u64 },
     #[error(transparent)]
-    Import(#[from] crate::import::ImportError),
+    Import(#[from] oocfmt_meshio::import::ImportError),
     #[error(transparent)]
     Tree(#[from] KdError),
     #[error(transparent)]
@@ -362,7 +362,7 @@ fn metadata(
     kd: &KdBuildOptions,
     layout: &LayoutOptions,
     stats: &OocStats,
-    bounds: crate::mesh::Bounds,
+    bounds: oocfmt_meshio::mesh::Bounds,
 ) -> Metadata {
     schema.six_sample_voxels = counts.voxels_six > 0;
     let mut params = kd.params();

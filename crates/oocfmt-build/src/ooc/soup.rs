@@ -18,11 +18,11 @@ use oocfmt::metadata::Material;
 
 use super::tee::MeshTee;
 use super::OocError;
-use crate::import::{
+use oocfmt_meshio::import::{
     ImportError, ImportReport, InputTriangle, Intake, Intaken, Location, MeshSink, Store,
     TriangleSink,
 };
-use crate::mesh::{Bounds, Mesh};
+use oocfmt_meshio::mesh::{Bounds, Mesh};
 
 pub const RECORD_LEN: usize = 92;
 const NO_MATERIAL: u32 = u32::MAX;
@@ -258,45 +258,39 @@ impl Store for SoupStore {
 /// The sink of `oocfmt convert`: the shared bad-input policy in front of a spill file.
 pub type SoupSink = Intake<SoupStore>;
 
-impl Intake<SoupStore> {
-    /// `mesh_limit`: also build the in-memory mesh on a second thread, for a scene of at most
-    /// that many triangles (see [`MeshTee`]).
-    pub fn create(
-        path: &Path,
-        strict: bool,
-        mesh_limit: Option<u64>,
-    ) -> Result<SoupSink, OocError> {
-        let store = SoupStore {
-            writer: SoupWriter::create(path)?,
-            tee: mesh_limit.map(MeshTee::spawn),
-            bounds: Bounds::EMPTY,
-            normals: false,
-            colours: false,
-        };
-        Ok(Intake::with_store(strict, store))
-    }
+/// `mesh_limit`: also build the in-memory mesh on a second thread, for a scene of at most
+/// that many triangles (see [`MeshTee`]).
+pub fn soup_sink(path: &Path, strict: bool, mesh_limit: Option<u64>) -> Result<SoupSink, OocError> {
+    let store = SoupStore {
+        writer: SoupWriter::create(path)?,
+        tee: mesh_limit.map(MeshTee::spawn),
+        bounds: Bounds::EMPTY,
+        normals: false,
+        colours: false,
+    };
+    Ok(Intake::with_store(strict, store))
+}
 
-    /// Fails on an empty result, like the in-memory sink.
-    pub fn finish(self) -> Result<Soup, OocError> {
-        let Intaken {
-            store,
-            table,
-            used_order,
-            report,
-        } = self.finish_intake()?;
-        let (path, count) = store.writer.finish()?;
-        Ok(Soup {
-            tee: store.tee,
-            path,
-            count,
-            bounds: store.bounds,
-            materials: table,
-            used_materials: used_order,
-            normals: store.normals,
-            colours: store.colours,
-            report,
-        })
-    }
+/// Fails on an empty result, like the in-memory sink.
+pub fn finish_soup(sink: SoupSink) -> Result<Soup, OocError> {
+    let Intaken {
+        store,
+        table,
+        used_order,
+        report,
+    } = sink.finish_intake()?;
+    let (path, count) = store.writer.finish()?;
+    Ok(Soup {
+        tee: store.tee,
+        path,
+        count,
+        bounds: store.bounds,
+        materials: table,
+        used_materials: used_order,
+        normals: store.normals,
+        colours: store.colours,
+        report,
+    })
 }
 
 #[cfg(test)]

@@ -9,12 +9,12 @@ use std::path::{Path, PathBuf};
 
 use super::soup::{SoupReader, SoupWriter};
 use super::OocError;
-use crate::import::InputTriangle;
 use crate::kdtree::clip_triangle;
 use crate::layout::plan::is_lod_depth;
 use crate::lod::rlod::{PlaneFit, PlaneMoments};
-use crate::mesh::Bounds;
 use crate::progress::Progress;
+use oocfmt_meshio::import::InputTriangle;
+use oocfmt_meshio::mesh::Bounds;
 
 /// The top of the tree, above the chunks: inner nodes from median splits, in preorder.
 #[derive(Clone, Debug, PartialEq)]
@@ -214,8 +214,8 @@ fn split_file(
 mod tests {
     use super::super::soup::SoupTriangle;
     use super::*;
-    use crate::import::InputTriangle;
     use crate::progress::NoProgress;
+    use oocfmt_meshio::import::InputTriangle;
 
     fn tri(x: f32, w: f32) -> SoupTriangle {
         SoupTriangle {

@@ -9,8 +9,8 @@ use std::thread::JoinHandle;
 
 use oocfmt::metadata::Material;
 
-use crate::import::{ImportError, InputTriangle, Location, MeshStore, Store};
-use crate::mesh::Mesh;
+use oocfmt_meshio::import::{ImportError, InputTriangle, Location, MeshStore, Store};
+use oocfmt_meshio::mesh::Mesh;
 
 /// Triangles handed over at a time: a few hundred kilobytes, so the threads rarely meet.
 const BATCH: usize = 4096;
@@ -86,7 +86,7 @@ impl MeshTee {
         }
     }
 
-    /// The mesh of every triangle pushed, numbered as [`crate::import::MeshSink`] numbers
+    /// The mesh of every triangle pushed, numbered as [`oocfmt_meshio::import::MeshSink`] numbers
     /// them, with the importers' material `table`; `None` when the thread gave up.
     pub fn finish(mut self, table: Vec<Material>) -> Option<Result<Mesh, ImportError>> {
         let sender = self.sender.take()?;
@@ -110,10 +110,10 @@ impl Drop for MeshTee {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gen::rng::Rng;
-    use crate::import::TriangleSink;
-    use crate::ooc::soup::SoupSink;
+    use crate::ooc::soup::{finish_soup, soup_sink};
     use crate::ooc::OocError;
+    use oocfmt_meshio::import::TriangleSink;
+    use oocfmt_scenes::rng::Rng;
 
     /// A scene of `n` triangles on a small lattice (so vertices repeat), some with normals
     /// (one of them not finite), colours and materials.
@@ -123,7 +123,7 @@ mod tests {
         n: u32,
         limit: Option<u64>,
     ) -> Result<Mesh, OocError> {
-        let mut sink = SoupSink::create(&dir.join(name), false, limit)?;
+        let mut sink = soup_sink(&dir.join(name), false, limit)?;
         let red = sink.add_material(Material {
             name: "red".into(),
             diffuse: [1.0, 0.0, 0.0],
@@ -144,7 +144,7 @@ mod tests {
             }
             sink.push(t, &at)?;
         }
-        let mut soup = sink.finish()?;
+        let mut soup = finish_soup(sink)?;
         soup.load_mesh()
     }
 

@@ -7,8 +7,8 @@ use super::chunk::answer_rays;
 use super::top::{finish_top_lod, record_rays, TopLod};
 use crate::kdtree::{build_cell, KdBuildOptions, KdTree, NodeId};
 use crate::lod::{sample_cell, shade, DEFAULT_VOXEL_THRESHOLD};
-use crate::mesh::{Bounds, Mesh};
 use crate::raycast::intersect_triangle;
+use oocfmt_meshio::mesh::{Bounds, Mesh};
 
 /// A closed box of 12 triangles with outward normals, in one vertex colour.
 fn closed_box(mesh: &mut Mesh, lo: [f32; 3], size: f32, colour: [u8; 4]) {

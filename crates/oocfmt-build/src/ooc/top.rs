@@ -15,8 +15,8 @@ use crate::layout::plan::is_lod_depth;
 use crate::layout::triangles::LeafRef;
 use crate::layout::LayoutError;
 use crate::lod::{sample_cell, LodData};
-use crate::mesh::Bounds;
 use oocfmt::records::Rlod;
+use oocfmt_meshio::mesh::Bounds;
 
 /// A LOD node among the median-split nodes, with its rays.
 pub struct TopLod {

@@ -8,7 +8,7 @@
 mod packet;
 
 use crate::kdtree::{KdNode, KdTree, NodeId};
-use crate::mesh::{Bounds, Mesh};
+use oocfmt_meshio::mesh::{Bounds, Mesh};
 pub use packet::PACKET_MAX;
 
 /// A ray `origin + t · dir`, with the reciprocals of the direction's components (infinite for

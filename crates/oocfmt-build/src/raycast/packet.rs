@@ -184,10 +184,10 @@ fn bits(mut mask: u64) -> impl Iterator<Item = usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gen::demo::demo_scene;
-    use crate::gen::rng::Rng;
     use crate::kdtree::{build, KdBuildOptions};
-    use crate::mesh::Mesh;
+    use oocfmt_meshio::mesh::Mesh;
+    use oocfmt_scenes::demo::demo_scene;
+    use oocfmt_scenes::rng::Rng;
 
     /// The demo scene plus a jittered grid of coplanar, overlapping squares: shared edges,
     /// triangles in split planes, ties between equally near hits.

@@ -6,10 +6,10 @@ use std::sync::Arc;
 
 use oocfmt::BlockKind;
 use oocfmt_build::convert::{convert, ConvertOptions};
-use oocfmt_build::gen::cad::{self, CadOptions};
-use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
 use oocfmt_build::layout::LayoutOptions;
 use oocfmt_build::progress::NoProgress;
+use oocfmt_scenes::cad::{self, CadOptions};
+use oocfmt_scenes::mandelbulb::{self, MandelbulbOptions};
 use oocfmt_trace::intersect::Ray;
 use oocfmt_trace::Scene;
 use rayon::prelude::*;

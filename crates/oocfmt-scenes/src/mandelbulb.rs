@@ -17,8 +17,8 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use super::obj_writer::ObjWriter;
-pub use super::obj_writer::{GenError, GenReport};
+pub use crate::{GenError, GenReport};
+use oocfmt_meshio::obj_writer::ObjWriter;
 
 /// A cube around the bulb (whose surfaces lie within ±1.13), centred on the origin.
 const BULB_HALF_EXTENT: f64 = 1.25;

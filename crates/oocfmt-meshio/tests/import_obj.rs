@@ -8,11 +8,11 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use oocfmt::metadata::Material;
-use oocfmt_build::import::obj::{import, ObjOptions};
-use oocfmt_build::import::{
+use oocfmt_meshio::import::obj::{import, ObjOptions};
+use oocfmt_meshio::import::{
     DropReason, ImportError, ImportReport, InputTriangle, Location, MeshSink, Skipped, TriangleSink,
 };
-use oocfmt_build::mesh::Mesh;
+use oocfmt_meshio::mesh::Mesh;
 use tempfile::TempDir;
 
 fn write(dir: &Path, name: &str, text: impl AsRef<[u8]>) -> PathBuf {

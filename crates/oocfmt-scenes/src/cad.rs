@@ -10,9 +10,9 @@
 use std::f64::consts::TAU;
 use std::path::Path;
 
-use super::obj_writer::{mtl_beside, write_mtl, ObjWriter};
-pub use super::obj_writer::{GenError, GenReport};
-use super::rng::Rng;
+use crate::rng::Rng;
+pub use crate::{GenError, GenReport};
+use oocfmt_meshio::obj_writer::{mtl_beside, write_mtl, ObjWriter};
 
 /// The materials, by name and diffuse colour.
 pub const MATERIALS: [(&str, [f32; 3]); 8] = [

@@ -10,7 +10,7 @@ use std::collections::HashMap;
 
 use oocfmt::metadata::Material;
 
-use crate::mesh::Mesh;
+use oocfmt_meshio::mesh::Mesh;
 
 /// A displaced cube-sphere of about `target_triangles` triangles (at least 12), radius about 1
 /// around the origin. Triangles are wound so their geometric normals point outwards.

@@ -283,11 +283,13 @@ impl MeshStore {
         id
     }
 
-    pub(crate) fn triangle_count(&self) -> usize {
+    /// Triangles stored so far.
+    pub fn triangle_count(&self) -> usize {
         self.triangles.len()
     }
 
-    pub(crate) fn into_mesh(self, table: Vec<Material>) -> Result<Mesh, ImportError> {
+    /// The indexed mesh of what was stored, with `table` as its materials.
+    pub fn into_mesh(self, table: Vec<Material>) -> Result<Mesh, ImportError> {
         let part = self.part.unwrap_or_default();
         let any_normals = part.normals || self.verts.iter().any(|v| v.normal.is_some());
         let any_colours = part.colours || self.verts.iter().any(|v| v.colour.is_some());
@@ -342,7 +344,7 @@ impl MeshStore {
 
 /// Keeps the materials that triangles use, in order of first use, plus a default for
 /// triangles without one; indices must fit the format's 16 bits.
-pub(crate) fn compact_materials(
+pub fn compact_materials(
     used: &[Option<u32>],
     table: Vec<Material>,
 ) -> Result<(Vec<u16>, Vec<Material>), ImportError> {
@@ -448,7 +450,7 @@ mod tests {
         // different attributes, and the hints are absent, right, misleading or absurd.
         let mesh_with = |mode: u32| {
             let mut s = MeshSink::new(false);
-            let mut rng = crate::gen::rng::Rng(5);
+            let mut rng = oocfmt_scenes::rng::Rng(5);
             let at = Location::line("t.obj", 1);
             for i in 0..3000u32 {
                 let ids: [u32; 3] = std::array::from_fn(|_| rng.int(0, 63));

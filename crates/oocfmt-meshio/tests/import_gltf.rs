@@ -9,11 +9,11 @@ use std::path::{Path, PathBuf};
 
 use base64::Engine;
 use oocfmt::metadata::Material;
-use oocfmt_build::import::gltf::{import, GltfOptions};
-use oocfmt_build::import::{
+use oocfmt_meshio::import::gltf::{import, GltfOptions};
+use oocfmt_meshio::import::{
     DropReason, ImportError, ImportReport, InputTriangle, Location, MeshSink, Skipped, TriangleSink,
 };
-use oocfmt_build::mesh::Mesh;
+use oocfmt_meshio::mesh::Mesh;
 use serde_json::{json, Value};
 
 const BYTE: u32 = 5120;

@@ -13,8 +13,7 @@ use std::fmt;
 use serde::Serialize;
 
 pub use placement::{PlacementReport, Recentre};
-pub(crate) use sink::compact_materials;
-pub use sink::{Intake, Intaken, MeshSink, MeshStore, PartSchema, Store};
+pub use sink::{compact_materials, Intake, Intaken, MeshSink, MeshStore, PartSchema, Store};
 
 use oocfmt::metadata::Material;
 

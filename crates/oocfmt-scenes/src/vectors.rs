@@ -9,9 +9,9 @@ use oocfmt::metadata::Material;
 use oocfmt::records::LodKinds;
 use oocfmt::{Codec, WriteOptions};
 
-use crate::kdtree::{build, KdBuildOptions, KdError, KdNode, KdTree, NodeId};
-use crate::layout::{write_container, LayoutError, LayoutOptions};
-use crate::mesh::Mesh;
+use oocfmt_build::kdtree::{build, KdBuildOptions, KdError, KdNode, KdTree, NodeId};
+use oocfmt_build::layout::{write_container, LayoutError, LayoutOptions};
+use oocfmt_meshio::mesh::Mesh;
 
 /// Every vector uses the smallest block size, so that even tiny scenes exercise packing.
 pub const VECTOR_BLOCK_SIZE: u64 = 4096;
@@ -318,7 +318,17 @@ mod tests {
         let dir = tempfile::tempdir().map_err(|e| e.to_string())?;
         let paths = write_vectors(dir.path()).map_err(|e| e.to_string())?;
         for (path, name) in paths.iter().zip(VECTOR_NAMES) {
-            crate::layout::tests::deep_verify(path)?;
+            let src = oocfmt::FileSource::open(path).map_err(|e| e.to_string())?;
+            let deep = oocfmt::verify::VerifyOptions {
+                depth: oocfmt::verify::Depth::Deep,
+                ..Default::default()
+            };
+            let report =
+                oocfmt::verify::verify(&src, name, &deep, &|_| {}).map_err(|e| e.to_string())?;
+            assert!(
+                report.valid && report.issues.is_empty(),
+                "{name}: {report:?}"
+            );
             let r = Reader::open(path, ReadOptions::default()).map_err(|e| e.to_string())?;
             assert_eq!(r.header().block_size(), VECTOR_BLOCK_SIZE as u32, "{name}");
             let kinds: Vec<(BlockKind, CodecId)> =

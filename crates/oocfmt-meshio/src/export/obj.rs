@@ -8,7 +8,7 @@ use oocfmt::records::triangle::{oct_decode, Vertex};
 use super::{
     material_names, Container, ExportError, ExportOptions, ExportReport, Placement, PrimarySink,
 };
-use crate::gen::obj_writer::{mtl_beside, write_mtl, ObjWriter};
+use crate::obj_writer::{mtl_beside, write_mtl, ObjWriter};
 
 /// Writes the primaries of `container` to `out` (and its materials to the `.mtl` beside it),
 /// atomically. `progress` gets (triangle blocks done, triangle blocks).

@@ -9,13 +9,13 @@ use std::path::{Path, PathBuf};
 
 use oocfmt::records::triangle::{oct_decode, oct_encode};
 use oocfmt::{BlockKind, EncodedBlock, ReadOptions, Reader, WriteOptions, Writer};
-use oocfmt_build::export::{self, ExportError, ExportOptions};
-use oocfmt_build::gen::cad::{self, CadOptions};
-use oocfmt_build::gen::demo_scene;
-use oocfmt_build::gen::mandelbulb::{self, MandelbulbOptions};
 use oocfmt_build::kdtree::{build, KdBuildOptions};
 use oocfmt_build::layout::{build_blocks, write_container, LayoutOptions};
-use oocfmt_build::mesh::Mesh;
+use oocfmt_meshio::export::{self, ExportError, ExportOptions};
+use oocfmt_meshio::mesh::Mesh;
+use oocfmt_scenes::cad::{self, CadOptions};
+use oocfmt_scenes::demo_scene;
+use oocfmt_scenes::mandelbulb::{self, MandelbulbOptions};
 
 type Res = Result<(), Box<dyn std::error::Error>>;
 

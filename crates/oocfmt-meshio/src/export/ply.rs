@@ -15,7 +15,7 @@ use super::{
     material_names, Container, ExportError, ExportOptions, ExportReport, Placement, PrimarySink,
     Walked,
 };
-use crate::gen::obj_writer::{AtomicFile, WriteError};
+use crate::obj_writer::{AtomicFile, WriteError};
 
 /// Writes the primaries of `container` to `out`, atomically. `progress` gets (block passes
 /// done, 2 × triangle blocks).

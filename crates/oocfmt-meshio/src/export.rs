@@ -17,7 +17,7 @@ use oocfmt::metadata::{Material, Metadata};
 use oocfmt::records::triangle::Vertex;
 use oocfmt::{BlockKind, ReadOptions, Reader};
 
-pub use crate::gen::obj_writer::WriteError;
+pub use crate::obj_writer::WriteError;
 pub use obj::write_obj;
 pub use ply::write_ply;
 
