@@ -13,12 +13,24 @@ use oocfmt_build::kdtree::{build, KdBuildOptions, KdError, KdNode, KdTree, NodeI
 use oocfmt_build::layout::{write_container, LayoutError, LayoutOptions};
 use oocfmt_meshio::mesh::Mesh;
 
-/// Every vector uses the smallest block size, so that even tiny scenes exercise packing.
+mod more;
+pub use more::{grid_mesh, write_grid, write_rlod_only, GRID_BLOCK_SIZE, GRID_ORIGIN};
+
+/// The block size of every vector but `grid-8k`: the smallest, so that even tiny scenes
+/// exercise packing.
 pub const VECTOR_BLOCK_SIZE: u64 = 4096;
 /// A fixed generator name: a version number here would change the vectors on every release.
 pub const VECTOR_GENERATOR: &str = "oocfmt-build spec vectors";
 /// The vector names, in the order [`write_vectors`] writes them.
-pub const VECTOR_NAMES: [&str; 5] = ["quad", "lod-none", "lod-lz4", "lod-zstd", "lod-rlod"];
+pub const VECTOR_NAMES: [&str; 7] = [
+    "quad",
+    "lod-none",
+    "lod-lz4",
+    "lod-zstd",
+    "lod-rlod",
+    "rlod-only",
+    "grid-8k",
+];
 
 #[derive(Debug, thiserror::Error)]
 pub enum VectorError {
@@ -53,6 +65,12 @@ pub fn write_vectors(dir: &Path) -> Result<Vec<PathBuf>, VectorError> {
     }
     let path = dir.join("lod-rlod.oocf");
     write_lod_kinds(&path, Codec::None, LodKinds::BOTH)?;
+    out.push(path);
+    let path = dir.join("rlod-only.oocf");
+    write_rlod_only(&path)?;
+    out.push(path);
+    let path = dir.join("grid-8k.oocf");
+    write_grid(&path)?;
     out.push(path);
     Ok(out)
 }
@@ -330,6 +348,10 @@ mod tests {
                 "{name}: {report:?}"
             );
             let r = Reader::open(path, ReadOptions::default()).map_err(|e| e.to_string())?;
+            if name == "grid-8k" {
+                check_grid(&r).map_err(|e| e.to_string())?;
+                continue;
+            }
             assert_eq!(r.header().block_size(), VECTOR_BLOCK_SIZE as u32, "{name}");
             let kinds: Vec<(BlockKind, CodecId)> =
                 r.entries().iter().map(|e| (e.kind, e.codec)).collect();
@@ -350,24 +372,23 @@ mod tests {
                 continue;
             }
             let c = m.counts;
-            assert!(
-                c.lod_levels >= 2 && c.voxels_single >= 1 && c.voxels_six >= 1 && c.proxies >= 1,
-                "{name}: {c:?}"
-            );
+            let voxels = c.voxels_single >= 1 && c.voxels_six >= 1;
+            assert!(c.lod_levels >= 2 && c.proxies >= 1, "{name}: {c:?}");
+            assert_eq!(voxels, name != "rlod-only", "{name}: {c:?}");
             let s = m.schema;
             assert!(
-                s.vertex_normals && s.vertex_colours && s.triangle_materials && s.six_sample_voxels,
+                s.vertex_normals && s.vertex_colours && s.triangle_materials,
                 "{name}"
             );
             assert_eq!(m.materials.len(), 2);
-            let (lod, minor) = if name == "lod-rlod" {
-                (oocfmt::records::LodKinds::BOTH, 1)
-            } else {
-                (oocfmt::records::LodKinds::VOXEL, 0)
+            let (lod, minor) = match name {
+                "lod-rlod" => (oocfmt::records::LodKinds::BOTH, 1),
+                "rlod-only" => (oocfmt::records::LodKinds::RLOD, 1),
+                _ => (oocfmt::records::LodKinds::VOXEL, 0),
             };
             assert_eq!((r.lod_kinds(), r.header().minor), (lod, minor), "{name}");
             // The R-LOD vector adds a 24-byte record to each of its LOD nodes.
-            let most = if name == "lod-rlod" { 12288 } else { 8192 };
+            let most = if name.contains("rlod") { 12288 } else { 8192 };
             assert!(r.file_len() < most, "{name} is {} bytes", r.file_len());
             let want = match name {
                 "lod-lz4" => CodecId::Lz4,
@@ -380,6 +401,39 @@ mod tests {
                 "{name}: {kinds:?}"
             );
         }
+        Ok(())
+    }
+
+    /// What `grid-8k` is for: another block size, several triangle blocks holding copies,
+    /// padding, no attributes, a non-zero origin.
+    fn check_grid(r: &oocfmt::Reader) -> oocfmt::Result<()> {
+        use oocfmt::{BlockKind, CodecId};
+        assert_eq!(r.header().block_size(), GRID_BLOCK_SIZE as u32);
+        let triangle_blocks = r
+            .entries()
+            .iter()
+            .filter(|e| e.kind == BlockKind::Triangle)
+            .count();
+        assert!(triangle_blocks >= 3, "{triangle_blocks} triangle blocks");
+        // Some block pads its list section and some its triangle section (6-byte records).
+        let (mut odd_lists, mut odd_triangles) = (false, false);
+        for (id, e) in r.entries().iter().enumerate() {
+            if e.kind == BlockKind::Triangle {
+                let b = r.read_block(id as u32)?;
+                let t = oocfmt::records::triangle::TriangleBlock::parse(&b.data, Some(0))?;
+                odd_lists |= t.list_count() % 2 == 1;
+                odd_triangles |= t.triangle_count() % 2 == 1;
+            }
+        }
+        assert!(odd_lists && odd_triangles, "{odd_lists} {odd_triangles}");
+        assert!(r.entries().iter().any(|e| e.codec == CodecId::Lz4));
+        let m = r.metadata();
+        let c = m.counts;
+        assert!(c.triangle_records > c.triangles, "{c:?}");
+        assert_eq!(c.triangles, 2 * 31 * 31);
+        let s = m.schema;
+        assert!(!s.vertex_normals && !s.vertex_colours && !s.triangle_materials);
+        assert_eq!(m.scene.origin, GRID_ORIGIN);
         Ok(())
     }
 }
