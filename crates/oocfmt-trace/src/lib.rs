@@ -2,6 +2,22 @@
 //! after Áfra (2012). A [`Scene`] is an open container with its proxies resident; a
 //! [`cache::BlockCache`] hands decoded blocks to the traversal; [`render::render`] makes one
 //! frame.
+//!
+//! ```
+//! use std::sync::Arc;
+//! use oocfmt_trace::{render, BlockingCache, Camera, RenderOptions, Scene};
+//!
+//! let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec/vectors/lod-lz4.oocf");
+//! let scene = Arc::new(Scene::open(std::path::Path::new(path))?);
+//! let cache = BlockingCache::new(Arc::clone(&scene), 16 << 20);
+//! let s = scene.metadata().scene;
+//! let camera = Camera::framing(s.bounds_min, s.bounds_max, 64, 48);
+//! let (image, stats) = render(&scene, &cache, &camera, &RenderOptions::default())?;
+//! assert_eq!(image.rgb.len(), 64 * 48 * 3);
+//! assert!(image.depth.iter().any(|d| d.is_finite()), "the model is in view");
+//! assert!(stats.rays >= 64 * 48);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 #![forbid(unsafe_code)]
 
@@ -21,6 +37,7 @@ pub mod packet;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod session;
 pub mod shade;
 pub mod spawn;
 pub mod traverse;

@@ -6,6 +6,19 @@
 //!   and reads blocks by id (positioned reads or a memory map).
 //! - [`records`] holds the hot fixed-layout records and their zero-copy views.
 //! - [`verify`] checks a file at three depths and reports every problem with a stable code.
+//!
+//! ```
+//! use oocfmt::{BlockKind, ReadOptions, Reader};
+//!
+//! let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../spec/vectors/quad.oocf");
+//! let reader = Reader::open(std::path::Path::new(path), ReadOptions::default())?;
+//! assert_eq!(reader.metadata().counts.triangles, 2);
+//! let id = reader.entries().iter().position(|e| e.kind == BlockKind::Triangle).unwrap_or(0);
+//! let block = reader.read_block(id as u32)?;
+//! let triangles = block.triangles(reader.metadata().schema.triangle_attributes())?;
+//! assert_eq!(triangles.primary_count(), 2);
+//! # Ok::<(), oocfmt::Error>(())
+//! ```
 
 mod bytes;
 pub mod checksum;
