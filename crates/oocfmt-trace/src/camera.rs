@@ -5,14 +5,20 @@
 use crate::error::TraceError;
 use crate::intersect::Ray;
 
+/// A pinhole camera and its image size; [`Camera::frame`] checks it and makes its rays.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
+    /// The eye position: where every ray starts.
     pub eye: [f64; 3],
+    /// The point seen at the centre of the image; must differ from `eye`.
     pub look_at: [f64; 3],
+    /// Which way is up; need not be unit or perpendicular to the view, but not parallel to it.
     pub up: [f64; 3],
     /// Vertical field of view, degrees.
     pub fov_y: f64,
+    /// Image width in pixels (at least 1).
     pub width: u32,
+    /// Image height in pixels (at least 1).
     pub height: u32,
 }
 
@@ -29,6 +35,7 @@ pub struct Frame {
     height: u32,
 }
 
+/// The vertical field of view, in degrees, of a camera that does not say.
 pub const DEFAULT_FOV_Y: f64 = 45.0;
 
 impl Camera {
@@ -70,6 +77,8 @@ impl Camera {
         }
     }
 
+    /// The camera's orthonormal frame, or a [`TraceError::Camera`] saying why it cannot make
+    /// rays (an empty image, a field of view outside 0..180 degrees, a degenerate view).
     pub fn frame(&self) -> Result<Frame, TraceError> {
         let bad = |what: &str| Err(TraceError::Camera(what.to_string()));
         if self.width == 0 || self.height == 0 {
@@ -140,10 +149,12 @@ impl Frame {
         self.pixel
     }
 
+    /// Image width in pixels.
     pub fn width(&self) -> u32 {
         self.width
     }
 
+    /// Image height in pixels.
     pub fn height(&self) -> u32 {
         self.height
     }

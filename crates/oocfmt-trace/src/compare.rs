@@ -12,40 +12,52 @@ pub const SSIM_WINDOW: usize = 8;
 /// Windows start every this many pixels, so neighbouring windows overlap by half.
 pub const SSIM_STRIDE: usize = 4;
 
-/// The images to compare differ in size.
+/// The images to compare differ in size, or one's buffers do not hold width × height pixels.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 #[error("images of different sizes: {a_width}x{a_height} and {b_width}x{b_height}")]
 pub struct SizeMismatch {
+    /// The reference image's width, in pixels.
     pub a_width: u32,
+    /// The reference image's height, in pixels.
     pub a_height: u32,
+    /// The tested image's width, in pixels.
     pub b_width: u32,
+    /// The tested image's height, in pixels.
     pub b_height: u32,
 }
 
+/// How far the hit distances of an image are from the reference's, pixel by pixel; a depth
+/// is a hit when finite.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
 pub struct DepthError {
     /// Pixels that hit in one image and miss in the other.
     pub hit_miss_differ: u64,
     /// Pixels that hit in both.
     pub both_hit: u64,
-    /// Of the pixels that hit in both, |d - d_ref| / d_ref: the median and the largest.
+    /// Of the pixels that hit in both, |d - d_ref| / d_ref: the median (0 when none did).
     pub median_relative: f64,
+    /// Of the pixels that hit in both, the largest |d - d_ref| / d_ref (0 when none did). A
+    /// reference depth of 0 counts with the absolute error.
     pub max_relative: f64,
 }
 
+/// Every measure of how far an image (or a sequence of frames) is from its reference.
 #[derive(Clone, Copy, Debug, Serialize, PartialEq)]
 pub struct ImageError {
-    /// Over all channels, in levels of 255.
+    /// Root mean square difference over all channels, in levels of 255.
     pub rmse: f64,
     /// 20 log10(255 / rmse) in dB; +inf for identical images, written as `null` in JSON
     /// (which has no infinity).
     #[serde(serialize_with = "finite_or_null")]
     pub psnr_db: f64,
+    /// Structural similarity on luma ([`ssim`]): 1 for identical images, at most 1; the mean
+    /// of the frames' for a sequence.
     pub ssim: f64,
     /// The tolerance of `within_tolerance`, in levels of 255.
     pub tolerance: u8,
     /// Share of pixels whose three channels all differ by at most `tolerance`.
     pub within_tolerance: f64,
+    /// The hit distances' error.
     pub depth: DepthError,
 }
 
@@ -81,6 +93,7 @@ pub struct Accumulator {
 }
 
 impl Accumulator {
+    /// An empty accumulator counting pixels within `tolerance` levels of 255 per channel.
     pub fn new(tolerance: u8) -> Accumulator {
         Accumulator {
             tolerance,
@@ -123,6 +136,7 @@ impl Accumulator {
         Ok(())
     }
 
+    /// The error over every frame added; with none, that of identical images (RMSE 0, SSIM 1).
     pub fn finish(mut self) -> ImageError {
         let rmse = if self.channels == 0 {
             0.0

@@ -9,7 +9,9 @@
 /// A ray with its watertight precomputation (shear constants and axis permutation).
 #[derive(Clone, Copy, Debug)]
 pub struct Ray {
+    /// The origin, in the container's stored coordinates.
     pub org: [f32; 3],
+    /// The direction as given (not normalised here); hit distances are in multiples of it.
     pub dir: [f32; 3],
     /// 1 / dir per axis; ±inf for a ±0 component.
     pub inv: [f32; 3],
@@ -24,7 +26,9 @@ pub struct Ray {
 /// vertices (a, b, c), summing to one.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriHit {
+    /// The hit's distance in multiples of the ray's direction (the length along a unit one).
     pub t: f32,
+    /// The weights of vertices a, b and c at the hit point.
     pub bary: [f32; 3],
 }
 

@@ -26,7 +26,10 @@ pub struct RayLanes<const N: usize> {
 pub struct LaneHits<const N: usize> {
     /// Bit i: lane i found a nearer triangle.
     pub hit: u32,
+    /// Per lane, the id (from `ids`) of the nearer triangle found; meaningful only where `hit`
+    /// has the lane's bit.
     pub triangle: [u16; N],
+    /// Per vertex a, b, c, then per lane, the barycentric weights of that lane's hit.
     pub bary: [[f32; N]; 3],
 }
 

@@ -90,6 +90,7 @@ impl<'a> Shadows<'a> {
         }
     }
 
+    /// The light's position, in stored coordinates.
     pub fn light(&self) -> [f32; 3] {
         self.light
     }

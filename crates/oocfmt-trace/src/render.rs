@@ -35,6 +35,8 @@ pub const MAX_SAMPLES: u32 = 1024;
 /// A finished tile: its index, colours, depths, ray endings, secondary rays and nodes visited.
 type TileOut = (u32, Vec<[u8; 3]>, Vec<f32>, Endings, Secondary, u64);
 
+/// What one frame shows and at what level of detail; [`RenderOptions::DEFAULT`] is full
+/// detail under the headlight. [`render`] refuses values out of range.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderOptions {
     /// Pixels of error: a LOD voxel ends a ray when its radius is at most this many pixels.
@@ -101,23 +103,31 @@ impl Default for RenderOptions {
     }
 }
 
+/// A rendered frame: colour and depth per pixel.
 pub struct Image {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
-    /// Row-major, row 0 at the top, 3 bytes per pixel.
+    /// sRGB-encoded colour, row-major, row 0 at the top, 3 bytes per pixel.
     pub rgb: Vec<u8>,
-    /// Hit distance along the unit ray direction, +inf for a miss; same order as `rgb`.
+    /// Hit distance of the pixel's centre ray along its unit direction, +inf for a miss; same
+    /// order as `rgb`.
     pub depth: Vec<f32>,
 }
 
 /// How primary rays ended.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
 pub struct Endings {
+    /// On a triangle: full detail.
     pub triangle: u64,
+    /// On a LOD voxel (within the pixels of error, or above a missing block).
     pub voxel: u64,
     /// On an R-LOD plane.
     pub rlod: u64,
+    /// On the proxy of a subtree whose block was not available.
     pub proxy: u64,
+    /// On nothing: the background.
     pub miss: u64,
 }
 
@@ -131,14 +141,21 @@ impl Endings {
     }
 }
 
+/// The figures of one frame, as `oocfmt render` reports them.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct FrameStats {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// The pixels of error the frame was rendered at ([`RenderOptions::poe`]).
     pub poe: f32,
     /// The LOD constant C = poe · 2 tan(fov_y / 2) / height.
     pub lod_c: f64,
+    /// Render threads (rayon's pool size).
     pub threads: usize,
+    /// Milliseconds of wall time from the frame's start ([`BlockCache::begin_frame`]) until
+    /// the last tile was traced and shaded; setup and image assembly excluded.
     pub ms: f64,
     /// Every ray traced: primary, shadow and ambient occlusion.
     pub rays: u64,
@@ -149,13 +166,17 @@ pub struct FrameStats {
     /// Primary rays: one per pixel, plus `spp` per pixel when `spp` > 1 (the centre ray then
     /// gives the depth and the endings only).
     pub primary_rays: u64,
+    /// Shadow rays towards the point light (with `shadows`).
     pub shadow_rays: u64,
+    /// Ambient-occlusion rays.
     pub ao_rays: u64,
     /// How the pixels' centre rays ended.
     pub primary: Endings,
     /// Kd-tree nodes (inner, LOD, leaf) the frame's rays visited.
     pub nodes_visited: u64,
+    /// `nodes_visited` over `rays`.
     pub nodes_per_ray: f64,
+    /// The cache's counters after the frame (cumulative over the cache's life).
     pub cache: CacheStats,
 }
 

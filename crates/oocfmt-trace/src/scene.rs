@@ -9,6 +9,8 @@ use oocfmt::{BlockKind, ReadOptions, Reader};
 use crate::blocks::{LodKind, TreeletData, TriangleData};
 use crate::error::TraceError;
 
+/// An open container ready to trace: its reader (metadata, directory, proxies resident) and
+/// the LOD kind the traversal stops on. Shared by the caches and the render threads.
 pub struct Scene {
     reader: Reader,
     attrs: u16,
@@ -19,6 +21,8 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// Opens the container at `path` with the default read options (default limits, block CRCs
+    /// checked), stopping on voxels when the file has them, else on R-LODs.
     pub fn open(path: &Path) -> Result<Scene, TraceError> {
         Ok(Self::from_reader(Reader::open(
             path,
@@ -75,14 +79,17 @@ impl Scene {
         Ok(self)
     }
 
+    /// The LOD representation the traversal stops on.
     pub fn lod(&self) -> LodKind {
         self.lod
     }
 
+    /// The container's metadata: the scene's bounds and origin, the schema, the root.
     pub fn metadata(&self) -> &Metadata {
         self.reader.metadata()
     }
 
+    /// The container's reader, for the blocks and the directory.
     pub fn reader(&self) -> &Reader {
         &self.reader
     }
@@ -92,6 +99,7 @@ impl Scene {
         self.reader.proxies()
     }
 
+    /// How many blocks the container's directory lists (block ids run below it).
     pub fn block_count(&self) -> usize {
         self.reader.entries().len()
     }

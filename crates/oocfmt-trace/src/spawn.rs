@@ -33,20 +33,32 @@ const CELL_SLACK: f32 = 1e-5;
 #[derive(Clone, Copy, Debug)]
 pub enum Origin {
     /// A triangle's vertices and the hit's barycentric weights.
-    Triangle { v: [[f32; 3]; 3], bary: [f32; 3] },
+    Triangle {
+        /// The triangle's vertices a, b, c, in stored coordinates.
+        v: [[f32; 3]; 3],
+        /// The hit's weights of a, b and c, summing to one.
+        bary: [f32; 3],
+    },
     /// A voxel or proxy, met by `ray` at `t`, whose cell has enclosing radius `radius`, with
     /// its unit normal turned towards the viewer; `scale` is the largest coordinate of the
     /// scene's box.
     Cell {
+        /// The primary ray that met the cell.
         ray: Ray,
+        /// Where along `ray` it met the cell's stand-in.
         t: f32,
+        /// The cell's enclosing radius (half its diagonal), or the R-LOD's error radius.
         radius: f32,
+        /// Unit normal, on the side the primary ray came from.
         normal: [f32; 3],
+        /// The largest coordinate of the scene's box: the scale of the positional tolerance.
         scale: f32,
     },
 }
 
 impl Origin {
+    /// What `hit` of `ray` leaves for secondary rays; `scale` the largest coordinate of the
+    /// scene's box. A hit without a usable normal faces back along the ray.
     pub fn of(hit: &Hit, ray: &Ray, scale: f32) -> Origin {
         let back = ray.dir.map(|c| -c);
         let normal = match &hit.surface {

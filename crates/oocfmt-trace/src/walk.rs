@@ -24,12 +24,17 @@ use crate::error::TraceError;
 /// The most frames one path may ask for.
 pub const MAX_FRAMES: u32 = 100_000;
 
+/// One camera of a path file, as written there (world coordinates); unknown keys are refused.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Key {
+    /// The eye position.
     pub eye: [f64; 3],
+    /// The point the camera looks at.
     pub look_at: [f64; 3],
+    /// The up direction; None: +y.
     pub up: Option<[f64; 3]>,
+    /// Vertical field of view in degrees; None: [`DEFAULT_FOV_Y`].
     pub fov_y: Option<f64>,
 }
 

@@ -52,7 +52,9 @@ pub struct AsyncOptions {
     /// Block levels read ahead below each block a ray asked for, into free room only (while
     /// less than half the budget is held); 0 reads nothing ahead.
     pub read_ahead: u8,
+    /// The order the fetchers serve a frame's requests in.
     pub fetch_order: FetchOrder,
+    /// How room is made for new blocks.
     pub eviction: Eviction,
     /// How many nice levels below the thread that creates the cache the fetchers run (Linux
     /// only; elsewhere they keep the render threads' priority): above 0 the render threads get
@@ -265,6 +267,8 @@ struct Book {
     wald_range: Option<Range>,
 }
 
+/// The asynchronous cache: render threads only look blocks up; background fetcher threads
+/// load what the frames asked for, published between frames ([`BlockCache::end_frame`]).
 pub struct AsyncCache {
     shared: Arc<Shared>,
     fetchers: Vec<JoinHandle<()>>,
@@ -375,6 +379,7 @@ impl AsyncCache {
         cache
     }
 
+    /// The scene the fetchers load blocks from.
     pub fn scene(&self) -> &Arc<Scene> {
         &self.shared.scene
     }

@@ -34,6 +34,8 @@ struct Table {
     missing: BTreeMap<u32, String>,
 }
 
+/// The blocking cache: misses are read and decoded on the render thread that met them, within
+/// a byte budget with least-recently-used eviction.
 pub struct BlockingCache {
     scene: Arc<Scene>,
     budget: usize,
@@ -42,6 +44,8 @@ pub struct BlockingCache {
 }
 
 impl BlockingCache {
+    /// A cache over `scene` holding up to `budget_bytes` decoded bytes (the block just loaded
+    /// stays even when it alone is over the budget).
     pub fn new(scene: Arc<Scene>, budget_bytes: usize) -> BlockingCache {
         Self::with_mode(scene, budget_bytes, "blocking")
     }
@@ -56,6 +60,7 @@ impl BlockingCache {
         }
     }
 
+    /// The scene the cache loads blocks from.
     pub fn scene(&self) -> &Arc<Scene> {
         &self.scene
     }

@@ -14,6 +14,8 @@ use crate::blocks::{TreeletData, TriangleData};
 use crate::error::TraceError;
 use crate::scene::Scene;
 
+/// The mmap cache: a [`BlockingCache`] over a memory-mapped, uncompressed container; its stats
+/// say `mmap`.
 pub struct MmapCache {
     inner: BlockingCache,
 }
@@ -56,6 +58,7 @@ impl MmapCache {
         })
     }
 
+    /// The scene opened over the mapped file.
     pub fn scene(&self) -> &Arc<Scene> {
         self.inner.scene()
     }

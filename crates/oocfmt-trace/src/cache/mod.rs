@@ -19,10 +19,13 @@ pub use blocking::BlockingCache;
 pub use mmap::MmapCache;
 pub use policy::{Eviction, FetchOrder};
 
+/// Where the traversal gets decoded treelet and triangle blocks, by block id; shared by all
+/// render threads of a frame.
 pub trait BlockCache: Send + Sync {
     /// Treelet block `id`, or None when it is not available: missing for good (it failed to
     /// read or decode), or, in an asynchronous cache, not loaded yet.
     fn treelets(&self, id: u32) -> Option<Arc<TreeletData>>;
+    /// Triangle block `id`, or None when it is not available, as for [`BlockCache::treelets`].
     fn triangles(&self, id: u32) -> Option<Arc<TriangleData>>;
     /// Blocks the rays of one tile wanted and did not get, each with what the rays made of its
     /// priority. A cache that loads on demand ignores it.
@@ -34,6 +37,7 @@ pub trait BlockCache: Send + Sync {
     /// evicts and hands the fetchers the new requests. Render threads must not be inside a
     /// frame while it runs (it is correct then too, only less useful).
     fn end_frame(&self) {}
+    /// The cache's counters so far (over all frames since it was made).
     fn stats(&self) -> CacheStats;
 }
 
@@ -68,24 +72,35 @@ impl Wish {
     }
 }
 
+/// A cache's counters, part of each frame's [`crate::render::FrameStats`]. Counts run over all
+/// frames since the cache was made; the fields only the asynchronous cache fills stay 0 in the
+/// others.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct CacheStats {
+    /// Which cache: `blocking`, `async` or `mmap`.
     pub mode: &'static str,
     /// Asynchronous cache: the fetch order and the eviction policy (empty for the others).
     pub fetch_order: &'static str,
+    /// Asynchronous cache: the eviction policy, `lru` or `second-chance` (empty for the others).
     pub eviction: &'static str,
     /// Asynchronous cache: how many nice levels below the render threads the fetchers were asked
     /// to run (up to nice 19), when the system took it (`None`: they run at the render threads'
     /// priority).
     pub fetcher_nice: Option<i32>,
+    /// The byte budget the cache was made with, in decoded bytes.
     pub budget_bytes: u64,
+    /// Decoded bytes of the blocks resident now.
     pub bytes_resident: u64,
     /// The most decoded bytes held at once; in the asynchronous cache that counts blocks
     /// fetched and waiting for publication too.
     pub peak_bytes_resident: u64,
+    /// Requests for a block by the traversal ([`BlockCache::treelets`], [`BlockCache::triangles`]).
     pub lookups: u64,
+    /// Of those, the ones that found the block resident.
     pub hits: u64,
+    /// Blocks read and decoded into the cache (in the asynchronous cache: published).
     pub blocks_loaded: u64,
+    /// Blocks dropped from the cache to stay within the budget.
     pub blocks_evicted: u64,
     /// Asynchronous cache: distinct blocks handed to the fetchers, over all frames.
     pub blocks_requested: u64,
@@ -95,6 +110,7 @@ pub struct CacheStats {
     /// Asynchronous cache: blocks loaded by look-ahead prefetching (predicted views), over all
     /// frames; and of those, the ones a frame has used since.
     pub blocks_prefetched: u64,
+    /// Asynchronous cache: of the prefetched blocks, those a frame has looked up since.
     pub blocks_prefetch_used: u64,
     /// Asynchronous cache: blocks queued or being fetched now.
     pub blocks_pending: u64,
@@ -111,9 +127,13 @@ pub struct CacheStats {
     pub missing_blocks: Vec<MissingBlock>,
 }
 
+/// A block that could not be read or decoded; the cache never tries it again and reports it
+/// as not available from then on.
 #[derive(Clone, Debug, Serialize, PartialEq, Eq)]
 pub struct MissingBlock {
+    /// The block's id (its index in the container's directory).
     pub id: u32,
+    /// Why it failed: the reader's or decoder's error, or a block of the wrong kind.
     pub error: String,
 }
 

@@ -39,8 +39,10 @@ pub enum Eviction {
 }
 
 impl FetchOrder {
+    /// The names [`FetchOrder::parse`] accepts, in variant order.
     pub const NAMES: [&'static str; 2] = ["afra", "wald"];
 
+    /// The order's name on the command line and in the stats: `afra` or `wald`.
     pub fn name(self) -> &'static str {
         match self {
             FetchOrder::Afra => "afra",
@@ -48,6 +50,7 @@ impl FetchOrder {
         }
     }
 
+    /// The order named `s` (exactly one of [`FetchOrder::NAMES`]), or None.
     pub fn parse(s: &str) -> Option<FetchOrder> {
         match s {
             "afra" => Some(FetchOrder::Afra),
@@ -58,8 +61,10 @@ impl FetchOrder {
 }
 
 impl Eviction {
+    /// The names [`Eviction::parse`] accepts, in variant order.
     pub const NAMES: [&'static str; 2] = ["lru", "second-chance"];
 
+    /// The policy's name on the command line and in the stats: `lru` or `second-chance`.
     pub fn name(self) -> &'static str {
         match self {
             Eviction::Lru => "lru",
@@ -67,6 +72,7 @@ impl Eviction {
         }
     }
 
+    /// The policy named `s` (exactly one of [`Eviction::NAMES`]), or None.
     pub fn parse(s: &str) -> Option<Eviction> {
         match s {
             "lru" => Some(Eviction::Lru),
@@ -99,7 +105,9 @@ pub const HIGH_WATER: f64 = 0.8;
 /// frame's priorities are mapped over.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Range {
+    /// The smallest finite priority (size over distance); maps to queue 0.
     pub lo: f32,
+    /// The largest finite priority; maps to the top queue. `lo <= hi`.
     pub hi: f32,
 }
 
@@ -186,14 +194,17 @@ pub struct Clock {
 }
 
 impl Clock {
+    /// Adds a newly resident block `id` behind the hand.
     pub fn insert(&mut self, id: u32) {
         self.ring.push_back(id);
     }
 
+    /// How many blocks the ring holds.
     pub fn len(&self) -> usize {
         self.ring.len()
     }
 
+    /// Whether the ring holds no block.
     pub fn is_empty(&self) -> bool {
         self.ring.is_empty()
     }

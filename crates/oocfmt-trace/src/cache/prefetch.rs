@@ -82,6 +82,7 @@ fn rotate(v: [f64; 3], axis: [f64; 3], angle: f64) -> [f64; 3] {
 pub struct LookAheadStep {
     /// Predicted cameras probed (0 until two frames have been rendered).
     pub cameras: u32,
+    /// Probe rays traced from the predicted cameras, over all of them.
     pub probe_rays: u64,
     /// Blocks handed to the cache as prefetch requests (within the per-frame budget).
     pub queued: u64,
