@@ -10,14 +10,17 @@ pub fn crc32c(bytes: &[u8]) -> u32 {
 pub struct Crc32c(u32);
 
 impl Crc32c {
+    /// A checksum of no bytes yet.
     pub fn new() -> Self {
         Crc32c(0)
     }
 
+    /// Appends `bytes` to the checksummed data.
     pub fn update(&mut self, bytes: &[u8]) {
         self.0 = crc32c::crc32c_append(self.0, bytes);
     }
 
+    /// The CRC-32C of everything fed so far, equal to [`crc32c()`] of those bytes in one piece.
     pub fn finish(self) -> u32 {
         self.0
     }

@@ -4,27 +4,41 @@ use crate::bytes::{u16_at, u32_at, u64_at, PutLe};
 use crate::error::{bad, Code, Error, Result};
 use crate::header::HEADER_LEN;
 
+/// Byte offset in a directory entry of the `u64` file offset of the block's stored bytes.
 pub const OFF_OFFSET: usize = 0;
+/// Byte offset in a directory entry of the `u32` number of bytes stored in the file.
 pub const OFF_STORED_LENGTH: usize = OFF_OFFSET + 8;
+/// Byte offset in a directory entry of the `u32` number of bytes after decompression.
 pub const OFF_RAW_LENGTH: usize = OFF_STORED_LENGTH + 4;
+/// Byte offset in a directory entry of the CRC-32C of the stored bytes.
 pub const OFF_CRC: usize = OFF_RAW_LENGTH + 4;
+/// Byte offset in a directory entry of the `u8` [`BlockKind`].
 pub const OFF_KIND: usize = OFF_CRC + 4;
+/// Byte offset in a directory entry of the `u8` [`CodecId`].
 pub const OFF_CODEC: usize = OFF_KIND + 1;
+/// Byte offset in a directory entry of the `u16` LOD level (treelet blocks; zero otherwise).
 pub const OFF_LEVEL: usize = OFF_CODEC + 1;
+/// Byte offset in a directory entry of the `u32` count of treelets, triangles or proxies.
 pub const OFF_ITEM_COUNT: usize = OFF_LEVEL + 2;
+/// Byte offset in a directory entry of a reserved `u32` that must be zero.
 pub const OFF_RESERVED: usize = OFF_ITEM_COUNT + 4;
+/// Length of one directory entry in bytes (32).
 pub const ENTRY_LEN: usize = OFF_RESERVED + 4;
 
 /// What a block holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum BlockKind {
+    /// Treelets of the kd-tree of one LOD level, with their LOD entries (spec §6).
     Treelet = 1,
+    /// Triangles, their vertices and the leaves' index lists (spec §8).
     Triangle = 2,
+    /// 80-byte directional proxies, loaded when the file opens (spec §7).
     Proxy = 3,
 }
 
 impl BlockKind {
+    /// The kind stored as `v` in a directory entry, or `None` for an unknown kind.
     pub fn from_u8(v: u8) -> Option<Self> {
         match v {
             1 => Some(BlockKind::Treelet),
@@ -34,6 +48,7 @@ impl BlockKind {
         }
     }
 
+    /// Lowercase name, as in messages and JSON output.
     pub fn name(self) -> &'static str {
         match self {
             BlockKind::Treelet => "treelet",
@@ -47,12 +62,16 @@ impl BlockKind {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CodecId {
+    /// Stored bytes are the raw bytes.
     None = 0,
+    /// One raw LZ4 block, without frame header or size prefix.
     Lz4 = 1,
+    /// One zstd frame (RFC 8878).
     Zstd = 2,
 }
 
 impl CodecId {
+    /// The codec stored as `v` in a directory entry, or `None` for an unknown codec.
     pub fn from_u8(v: u8) -> Option<Self> {
         match v {
             0 => Some(CodecId::None),
@@ -62,6 +81,7 @@ impl CodecId {
         }
     }
 
+    /// Lowercase name, as in messages and JSON output.
     pub fn name(self) -> &'static str {
         match self {
             CodecId::None => "none",
@@ -71,19 +91,29 @@ impl CodecId {
     }
 }
 
+/// One directory entry: where a block lies, how it is stored and what it holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BlockEntry {
+    /// File offset of the block's stored bytes (64 for block 0, then packed back to back).
     pub offset: u64,
+    /// Bytes the block takes in the file; below `raw_length` when compressed.
     pub stored_length: u32,
+    /// Bytes after decompression, `1..=` the block size: the exact size of the decode buffer.
     pub raw_length: u32,
+    /// CRC-32C of the stored bytes.
     pub crc: u32,
+    /// What the block holds.
     pub kind: BlockKind,
+    /// How the stored bytes encode the raw bytes.
     pub codec: CodecId,
+    /// LOD level of a treelet block (never decreasing in block order); zero for other kinds.
     pub level: u16,
+    /// Treelets, triangles or proxies in the block; at least 1.
     pub item_count: u32,
 }
 
 impl BlockEntry {
+    /// Appends the entry's 32 bytes to `v`.
     pub fn encode_into(&self, v: &mut Vec<u8>) {
         v.put_u64(self.offset);
         v.put_u32(self.stored_length);

@@ -4,6 +4,8 @@ use crate::bytes::{u16_at, u32_at, u64_at, PutLe};
 use crate::checksum::crc32c;
 use crate::error::{bad, Code, Error, ErrorKind, Result};
 
+/// The first 8 bytes of every file, `\x89OCF\r\n\x1a\n`: built like PNG's so 7-bit and
+/// line-ending conversions break it visibly (spec §3).
 pub const MAGIC: [u8; 8] = [0x89, b'O', b'C', b'F', b'\r', b'\n', 0x1a, b'\n'];
 /// The major version this crate reads and writes.
 pub const VERSION_MAJOR: u16 = 1;
@@ -13,11 +15,16 @@ pub const VERSION_MAJOR: u16 = 1;
 pub const VERSION_MINOR: u16 = 1;
 /// The minor version of files that use no feature added after 1.0.
 pub const VERSION_MINOR_BASE: u16 = 0;
+/// Smallest allowed `block_size_log2`: blocks of 4 KiB.
 pub const MIN_BLOCK_SIZE_LOG2: u8 = 12;
+/// Largest allowed `block_size_log2`: blocks of 1 MiB, which bounds every block allocation.
 pub const MAX_BLOCK_SIZE_LOG2: u8 = 20;
+/// The `block_size_log2` writers use unless told otherwise: 64 KiB blocks.
 pub const DEFAULT_BLOCK_SIZE_LOG2: u8 = 16;
 
+/// Compatible feature bit: the file has at least one proxy block.
 pub const COMPAT_PROXIES: u64 = 1 << 0;
+/// Compatible feature bit: the tree has at least one LOD node.
 pub const COMPAT_LOD_VOXELS: u64 = 1 << 1;
 /// Compatible feature bits defined by this version.
 pub const KNOWN_COMPAT: u64 = COMPAT_PROXIES | COMPAT_LOD_VOXELS;
@@ -29,27 +36,45 @@ pub const INCOMPAT_LOD_NO_VOXELS: u64 = 1 << 1;
 pub const KNOWN_INCOMPAT: u64 = INCOMPAT_LOD_RLODS | INCOMPAT_LOD_NO_VOXELS;
 
 // Field offsets, each built from the one before so prose and code cannot drift apart.
+/// Byte offset in the header of [`MAGIC`].
 pub const OFF_MAGIC: usize = 0;
+/// Byte offset in the header of the `u16` major version.
 pub const OFF_MAJOR: usize = OFF_MAGIC + 8;
+/// Byte offset in the header of the `u16` minor version.
 pub const OFF_MINOR: usize = OFF_MAJOR + 2;
+/// Byte offset in the header of the `u8` log2 of the block size.
 pub const OFF_BLOCK_SIZE_LOG2: usize = OFF_MINOR + 2;
+/// Byte offset in the header of 3 reserved bytes that must be zero.
 pub const OFF_RESERVED_A: usize = OFF_BLOCK_SIZE_LOG2 + 1;
+/// Byte offset in the header of the `u64` incompatible feature bits.
 pub const OFF_INCOMPAT: usize = OFF_RESERVED_A + 3;
+/// Byte offset in the header of the `u64` compatible feature bits.
 pub const OFF_COMPAT: usize = OFF_INCOMPAT + 8;
+/// Byte offset in the header of the `u64` file offset of the directory.
 pub const OFF_DIRECTORY_OFFSET: usize = OFF_COMPAT + 8;
+/// Byte offset in the header of the `u32` number of blocks (directory entries).
 pub const OFF_BLOCK_COUNT: usize = OFF_DIRECTORY_OFFSET + 8;
+/// Byte offset in the header of the `u32` length of the metadata in bytes.
 pub const OFF_METADATA_LENGTH: usize = OFF_BLOCK_COUNT + 4;
+/// Byte offset in the header of the `u64` file offset of the metadata.
 pub const OFF_METADATA_OFFSET: usize = OFF_METADATA_LENGTH + 4;
+/// Byte offset in the header of a reserved `u32` that must be zero.
 pub const OFF_RESERVED_B: usize = OFF_METADATA_OFFSET + 8;
+/// Byte offset in the header of the CRC-32C of header bytes `0..OFF_HEADER_CRC`.
 pub const OFF_HEADER_CRC: usize = OFF_RESERVED_B + 4;
+/// Length of the header in bytes (64); the first block starts here.
 pub const HEADER_LEN: usize = OFF_HEADER_CRC + 4;
 
 /// Where the sections after the blocks lie; the header and the trailer both carry it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct SectionTable {
+    /// File offset of the directory: the end of the last block, or 64 without blocks.
     pub directory_offset: u64,
+    /// Number of blocks and directory entries; block ids are `0..block_count`.
     pub block_count: u32,
+    /// File offset of the metadata: `directory_offset + 32 × block_count`.
     pub metadata_offset: u64,
+    /// Length of the postcard-encoded metadata in bytes.
     pub metadata_length: u32,
 }
 
@@ -98,17 +123,27 @@ impl SectionTable {
     }
 }
 
+/// The decoded header: version, block size, feature bits and where the sections lie.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Header {
+    /// Major version; a reader refuses any other than [`VERSION_MAJOR`].
     pub major: u16,
+    /// Minor version; newer than [`VERSION_MINOR`] is read, ignoring what it adds.
     pub minor: u16,
+    /// Log2 of the block size in bytes, in
+    /// [`MIN_BLOCK_SIZE_LOG2`]`..=`[`MAX_BLOCK_SIZE_LOG2`] once validated.
     pub block_size_log2: u8,
+    /// Feature bits a reader must know to read the file ([`KNOWN_INCOMPAT`]).
     pub incompatible_features: u64,
+    /// Feature bits a reader may ignore ([`KNOWN_COMPAT`]).
     pub compatible_features: u64,
+    /// Where the directory and metadata lie; must equal the trailer's copy.
     pub sections: SectionTable,
 }
 
 impl Header {
+    /// A header of version 1.0 with no feature bits and an empty section table, for a writer to
+    /// fill in.
     pub fn new(block_size_log2: u8) -> Self {
         Header {
             major: VERSION_MAJOR,
@@ -120,10 +155,12 @@ impl Header {
         }
     }
 
+    /// The block size in bytes: the most raw bytes one block may hold.
     pub fn block_size(&self) -> u32 {
         1u32 << self.block_size_log2.min(31)
     }
 
+    /// The 64 header bytes, reserved bytes zero and the header CRC computed.
     pub fn encode(&self) -> [u8; HEADER_LEN] {
         let mut v = Vec::with_capacity(HEADER_LEN);
         v.extend_from_slice(&MAGIC);

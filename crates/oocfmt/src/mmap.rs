@@ -12,11 +12,14 @@ use std::path::Path;
 
 use crate::source::{slice_read, ByteSource};
 
+/// A read-only memory map of a whole file, read without copies through
+/// [`ByteSource::as_slice`]; its length is fixed when mapped.
 pub struct MmapSource {
     map: memmap2::Mmap,
 }
 
 impl MmapSource {
+    /// Opens and maps the file at `path`; see the module documentation for the risk.
     pub fn open(path: &Path) -> io::Result<Self> {
         let file = File::open(path)?;
         // SAFETY: the map is read-only and private to this process. The bytes may change only

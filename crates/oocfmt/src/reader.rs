@@ -18,7 +18,9 @@ use crate::trailer::{Trailer, TRAILER_LEN};
 /// Sizes a reader accepts before it allocates (spec §12).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Limits {
+    /// Longest metadata section accepted, in bytes (16 MiB by default).
     pub max_metadata_bytes: u32,
+    /// Most bytes of proxy blocks loaded at open, Σ `raw_length` (1 GiB by default).
     pub max_resident_bytes: u64,
 }
 
@@ -36,14 +38,19 @@ impl Default for Limits {
 /// forces it. A cfg, unlike a Cargo feature, cannot be switched on by another crate in the graph.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Checksums {
+    /// Check every block's CRC before decompressing it.
     #[default]
     Verify,
+    /// Decompress blocks without checking their CRCs.
     Skip,
 }
 
+/// How a [`Reader`] opens a file and reads its blocks.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ReadOptions {
+    /// Sizes accepted before allocating.
     pub limits: Limits,
+    /// Whether block CRCs are checked.
     pub checksums: Checksums,
 }
 
@@ -56,24 +63,31 @@ impl ReadOptions {
 /// A decoded block: its id, its directory entry and its raw bytes.
 #[derive(Clone, Debug)]
 pub struct Block {
+    /// Block id: the index of its directory entry.
     pub id: u32,
+    /// The block's directory entry.
     pub entry: BlockEntry,
+    /// The decompressed bytes, exactly `entry.raw_length` of them.
     pub data: Vec<u8>,
     /// The LOD kinds of the file it came from: the layout of a treelet block's LOD area.
     pub lod: LodKinds,
 }
 
 impl Block {
+    /// Parses the block as a treelet block; fails if it is of another kind or malformed.
     pub fn treelets(&self) -> Result<TreeletBlock<'_>> {
         self.check_kind(BlockKind::Treelet)?;
         TreeletBlock::parse_with(&self.data, self.lod).map_err(|e| e.in_block(self.id))
     }
 
+    /// Parses the block as a triangle block whose attribute bits must equal `attrs` (the
+    /// metadata schema's); fails if it is of another kind or malformed.
     pub fn triangles(&self, attrs: u16) -> Result<TriangleBlock<'_>> {
         self.check_kind(BlockKind::Triangle)?;
         TriangleBlock::parse(&self.data, Some(attrs)).map_err(|e| e.in_block(self.id))
     }
 
+    /// Decodes the block as a proxy block; fails if it is of another kind or malformed.
     pub fn proxies(&self) -> Result<Vec<ProxyRecord>> {
         self.check_kind(BlockKind::Proxy)?;
         ProxyRecord::decode_block(&self.data, self.entry.item_count as usize)
@@ -99,12 +113,19 @@ impl Block {
 /// The parts of a file that `open` loads and checks.
 #[derive(Clone, Debug)]
 pub struct Index {
+    /// The validated header.
     pub header: Header,
+    /// The validated trailer; its section table equals the header's.
     pub trailer: Trailer,
+    /// The directory, indexed by block id, with placement checked.
     pub entries: Vec<BlockEntry>,
+    /// The decoded metadata.
     pub metadata: Metadata,
 }
 
+/// An open `.oocf` file whose header, trailer, directory and metadata have been checked and
+/// whose proxies are loaded; blocks are read by id. Every method takes `&self` and the reader
+/// is `Sync`, so threads share one.
 pub struct Reader {
     source: Box<dyn ByteSource>,
     name: Arc<str>,
@@ -128,6 +149,7 @@ impl Reader {
         Self::from_source(Box::new(src), name, opts)
     }
 
+    /// Opens a file from any byte source; `name` labels errors (usually the path).
     pub fn from_source(
         source: Box<dyn ByteSource>,
         name: Arc<str>,
@@ -147,6 +169,7 @@ impl Reader {
         inner().map_err(|e| e.in_file(&name))
     }
 
+    /// The name errors carry: the path as displayed, or the name given to `from_source`.
     pub fn name(&self) -> &Arc<str> {
         &self.name
     }
@@ -156,18 +179,22 @@ impl Reader {
         LodKinds::of_header(&self.index.header)
     }
 
+    /// The validated header.
     pub fn header(&self) -> &Header {
         &self.index.header
     }
 
+    /// The validated trailer.
     pub fn trailer(&self) -> &Trailer {
         &self.index.trailer
     }
 
+    /// The directory, indexed by block id.
     pub fn entries(&self) -> &[BlockEntry] {
         &self.index.entries
     }
 
+    /// The directory entry of block `id`; a `TREE_REFERENCE` error if there is no such block.
     pub fn entry(&self, id: u32) -> Result<&BlockEntry> {
         self.index.entries.get(id as usize).ok_or_else(|| {
             Error::malformed(
@@ -178,6 +205,7 @@ impl Reader {
         })
     }
 
+    /// The decoded metadata.
     pub fn metadata(&self) -> &Metadata {
         &self.index.metadata
     }
@@ -192,10 +220,12 @@ impl Reader {
         self.index.trailer.root_checksum
     }
 
+    /// Length of the file in bytes.
     pub fn file_len(&self) -> u64 {
         self.source.len()
     }
 
+    /// The bytes the reader reads from.
     pub fn source(&self) -> &dyn ByteSource {
         self.source.as_ref()
     }
@@ -319,6 +349,7 @@ pub fn short_file_error(src: &dyn ByteSource) -> Result<Error> {
     })
 }
 
+/// Reads and checks the trailer (the last 48 bytes of `src`).
 pub fn read_trailer(src: &dyn ByteSource) -> Result<Trailer> {
     let at = src.len().saturating_sub(TRAILER_LEN as u64);
     let bytes = read_vec(src, at, TRAILER_LEN as u64)?;

@@ -6,8 +6,10 @@ use std::path::Path;
 
 /// Random-access bytes of known length.
 pub trait ByteSource: Send + Sync {
+    /// Length of the source in bytes.
     fn len(&self) -> u64;
 
+    /// Whether the source holds no bytes.
     fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -28,6 +30,7 @@ pub struct FileSource {
 }
 
 impl FileSource {
+    /// Opens the file at `path` and fixes its length.
     pub fn open(path: &Path) -> io::Result<Self> {
         let file = File::open(path)?;
         let len = file.metadata()?.len();

@@ -17,18 +17,30 @@ use crate::Reader;
 /// What one block holds, found by decoding it and checking its framing.
 #[derive(Clone, Debug, PartialEq)]
 pub enum BlockFacts {
+    /// A treelet block.
     Treelet {
+        /// What the walk over its treelets counted.
         nodes: TreeletSummary,
+        /// Σ triangle count over its leaves: references, so a triangle in two leaves counts
+        /// twice.
         leaf_triangle_refs: u64,
     },
+    /// A triangle block.
     Triangle {
+        /// Entries in the list section.
         list: u32,
+        /// Triangle records, copies included.
         triangles: u32,
+        /// Vertex records.
         vertices: u32,
+        /// Primary triangles (the first `primaries` records).
         primaries: u32,
+        /// Largest material index of its triangles; `None` without triangle materials.
         max_material: Option<u16>,
     },
+    /// A proxy block.
     Proxy {
+        /// Each record's `node_block`, in record order.
         node_blocks: Vec<u32>,
     },
 }
@@ -110,22 +122,37 @@ impl BlockFacts {
 pub struct LevelRow {
     /// `0`, `1`, … for treelet levels, then `triangles` and `proxies`.
     pub level: String,
+    /// Blocks in the row.
     pub blocks: u64,
+    /// Treelets in the row's treelet blocks.
     pub treelets: u64,
+    /// Basic nodes in the row's treelet blocks.
     pub basic_nodes: u64,
+    /// LOD nodes in the row's treelet blocks.
     pub lod_nodes: u64,
+    /// Leaves in the row's treelet blocks.
     pub leaves: u64,
+    /// 1-sample voxels in the row's treelet blocks.
     pub voxels_single: u64,
+    /// 6-sample voxels in the row's treelet blocks.
     pub voxels_six: u64,
+    /// R-LOD records in the row's treelet blocks.
     pub rlods: u64,
+    /// Triangle records (copies included) of the `triangles` row, from the directory.
     pub triangles: u64,
+    /// Proxy records of the `proxies` row, from the directory.
     pub proxies: u64,
+    /// Σ raw (decompressed) length of the row's blocks, in bytes.
     pub raw_bytes: u64,
+    /// Σ stored length of the row's blocks, in bytes.
     pub stored_bytes: u64,
+    /// Compression ratio `raw_bytes / stored_bytes` (0 for an empty row).
     pub ratio: f64,
+    /// Blocks per codec name (`none`, `lz4`, `zstd`).
     pub codecs: BTreeMap<String, u64>,
 }
 
+/// How the file's bytes split between what a reader holds from open and what it streams.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Residency {
     /// Header, directory, metadata, trailer and proxy blocks as stored: read at open.
@@ -136,36 +163,63 @@ pub struct Residency {
     pub streamed_bytes: u64,
 }
 
+/// Totals over the kd-tree, from the treelet blocks and the metadata.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct TreeStats {
+    /// Node levels on the longest root-to-leaf path (metadata `counts.depth`).
     pub depth: u32,
+    /// Number of treelet levels in the directory.
     pub lod_levels: u32,
+    /// Treelets in all treelet blocks.
     pub treelets: u64,
+    /// Basic nodes in all treelet blocks.
     pub basic_nodes: u64,
+    /// LOD nodes in all treelet blocks.
     pub lod_nodes: u64,
+    /// Leaves in all treelet blocks.
     pub leaves: u64,
+    /// Σ triangle count over all leaves (a triangle in two leaves counts twice).
     pub leaf_triangle_refs: u64,
+    /// `leaf_triangle_refs / leaves` (0 without leaves).
     pub avg_triangles_per_leaf: f64,
+    /// Input triangles: Σ primary counts (metadata `counts.triangles`).
     pub triangles: u64,
+    /// File length divided by `triangles` (0 without triangles).
     pub bytes_per_triangle: f64,
 }
 
+/// The file summary `oocfmt inspect` prints, as text or JSON.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Summary {
+    /// The reader's name for the file (its path as displayed).
     pub file: String,
+    /// File length in bytes.
     pub file_length: u64,
+    /// Format version as `major.minor`.
     pub version: String,
+    /// Block size in bytes.
     pub block_size: u32,
+    /// The header's incompatible feature bits.
     pub incompatible_features: u64,
+    /// The header's compatible feature bits.
     pub compatible_features: u64,
+    /// Names of the known feature bits set (`PROXIES`, `LOD_VOXELS`, `LOD_RLODS`,
+    /// `LOD_NO_VOXELS`).
     pub feature_names: Vec<String>,
     /// What the LOD nodes carry: `voxel`, `rlod` or `voxel+rlod`.
     pub lod_kinds: String,
+    /// The root checksum (the file's identity) as 8 lowercase hex digits.
     pub identity: String,
+    /// Blocks in the directory.
     pub block_count: u32,
+    /// One row per treelet level, coarse to fine, then `triangles` and `proxies` rows where
+    /// the file has such blocks.
     pub levels: Vec<LevelRow>,
+    /// Bytes held from open against bytes streamed.
     pub residency: Residency,
+    /// Totals over the tree.
     pub tree: TreeStats,
+    /// The file's metadata, as decoded.
     pub metadata: Metadata,
 }
 

@@ -5,29 +5,46 @@ use crate::checksum::crc32c;
 use crate::error::{Code, Error, ErrorKind, Result};
 use crate::header::SectionTable;
 
+/// The trailer's last 8 bytes, `OCFEND\r\n`: absent when a file is cut short or appended to.
 pub const END_MAGIC: [u8; 8] = *b"OCFEND\r\n";
 
+/// Byte offset in the trailer of the `u64` directory offset (a copy of the header's).
 pub const OFF_DIRECTORY_OFFSET: usize = 0;
+/// Byte offset in the trailer of the `u64` metadata offset (a copy of the header's).
 pub const OFF_METADATA_OFFSET: usize = OFF_DIRECTORY_OFFSET + 8;
+/// Byte offset in the trailer of the `u32` block count (a copy of the header's).
 pub const OFF_BLOCK_COUNT: usize = OFF_METADATA_OFFSET + 8;
+/// Byte offset in the trailer of the `u32` metadata length (a copy of the header's).
 pub const OFF_METADATA_LENGTH: usize = OFF_BLOCK_COUNT + 4;
+/// Byte offset in the trailer of the CRC-32C of the directory bytes.
 pub const OFF_DIRECTORY_CRC: usize = OFF_METADATA_LENGTH + 4;
+/// Byte offset in the trailer of the CRC-32C of the metadata bytes.
 pub const OFF_METADATA_CRC: usize = OFF_DIRECTORY_CRC + 4;
+/// Byte offset in the trailer of the root checksum (header, directory and metadata).
 pub const OFF_ROOT_CHECKSUM: usize = OFF_METADATA_CRC + 4;
+/// Byte offset in the trailer of the CRC-32C of trailer bytes `0..OFF_TRAILER_CRC`.
 pub const OFF_TRAILER_CRC: usize = OFF_ROOT_CHECKSUM + 4;
+/// Byte offset in the trailer of [`END_MAGIC`].
 pub const OFF_END_MAGIC: usize = OFF_TRAILER_CRC + 4;
+/// Length of the trailer in bytes (48); it ends the file.
 pub const TRAILER_LEN: usize = OFF_END_MAGIC + 8;
 
+/// The decoded trailer: the section table again, so a reader can cross-check the header, and
+/// the checksums of the directory, the metadata and the whole file's identity.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Trailer {
+    /// Where the directory and metadata lie; must equal the header's copy.
     pub sections: SectionTable,
+    /// CRC-32C of the directory bytes.
     pub directory_crc: u32,
+    /// CRC-32C of the metadata bytes.
     pub metadata_crc: u32,
     /// The file's identity (spec §10).
     pub root_checksum: u32,
 }
 
 impl Trailer {
+    /// The 48 trailer bytes, with the trailer CRC computed and the end magic appended.
     pub fn encode(&self) -> [u8; TRAILER_LEN] {
         let mut v = Vec::with_capacity(TRAILER_LEN);
         v.put_u64(self.sections.directory_offset);

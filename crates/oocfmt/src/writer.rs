@@ -20,6 +20,7 @@ use crate::trailer::Trailer;
 
 /// The file under construction. `sync` must make everything written durable.
 pub trait OutputFile: Write + Seek {
+    /// Flushes buffers and makes every byte written durable (fsync).
     fn sync(&mut self) -> io::Result<()>;
 }
 
@@ -30,9 +31,12 @@ impl OutputFile for BufWriter<File> {
     }
 }
 
+/// How a [`Writer`] lays out and compresses a file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct WriteOptions {
+    /// Log2 of the block size in bytes, 12 ..= 20 (default 16: 64 KiB).
     pub block_size_log2: u8,
+    /// The codec blocks are compressed with; a block it does not shrink is stored raw.
     pub codec: Codec,
     /// What the LOD nodes carry: the header's LOD feature bits and, with R-LODs, minor 1.
     pub lod: LodKinds,
@@ -68,16 +72,25 @@ impl WriteOptions {
 /// so callers may do it on many threads and append in order.
 #[derive(Clone, Debug)]
 pub struct EncodedBlock {
+    /// What the block holds.
     pub kind: BlockKind,
+    /// LOD level of a treelet block; zero for other kinds.
     pub level: u16,
+    /// Treelets, triangles or proxies in the block.
     pub item_count: u32,
+    /// Bytes before compression.
     pub raw_length: u32,
+    /// The codec the stored bytes are in: [`CodecId::None`] when compressing did not shrink them.
     pub codec: CodecId,
+    /// CRC-32C of `stored`.
     pub crc: u32,
+    /// The bytes to store in the file.
     pub stored: Vec<u8>,
 }
 
 impl EncodedBlock {
+    /// Compresses `raw` with `codec` (raw when that does not make it smaller) and checksums the
+    /// result; it needs no [`Writer`], so it can run on any thread.
     pub fn encode(
         codec: Codec,
         kind: BlockKind,
@@ -102,11 +115,17 @@ impl EncodedBlock {
 /// What a finished write produced.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct WriteSummary {
+    /// Length of the finished file in bytes.
     pub file_length: u64,
+    /// Blocks written.
     pub block_count: u32,
+    /// The file's root checksum (spec §10).
     pub identity: u32,
 }
 
+/// Writes an `.oocf` file: blocks are appended in order to a temporary file beside the
+/// target, which [`Writer::finish`] completes and renames into place; dropping the writer
+/// unfinished removes the temporary file.
 pub struct Writer<F: OutputFile = BufWriter<File>> {
     out: Option<F>,
     temp: PathBuf,
@@ -181,14 +200,17 @@ impl<F: OutputFile> Writer<F> {
         }
     }
 
+    /// The block size in bytes: the most raw bytes a block may hold.
     pub fn block_size(&self) -> u32 {
         self.header.block_size()
     }
 
+    /// Blocks written so far; the next block gets this id.
     pub fn block_count(&self) -> u32 {
         self.entries.len() as u32
     }
 
+    /// The codec blocks written through [`Writer::write_block`] are compressed with.
     pub fn codec(&self) -> Codec {
         self.codec
     }

@@ -8,8 +8,11 @@
 use crate::bytes::{f32_at, u32_at, PutLe};
 use crate::error::{bad, Code, Result};
 
+/// Bytes of a basic (inner) node.
 pub const NODE_BASIC_LEN: usize = 8;
+/// Bytes of a LOD node.
 pub const NODE_LOD_LEN: usize = 24;
+/// Bytes of a leaf node.
 pub const NODE_LEAF_LEN: usize = 8;
 /// The proxy id of a LOD node without a proxy.
 pub const NO_PROXY: u32 = u32::MAX;
@@ -30,27 +33,49 @@ const TYPE_LEAF: u32 = 2;
 /// One decoded node. Child offsets are as stored: 8-byte units from this node, 0 = empty.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Node {
+    /// An inner node whose children lie in the same treelet.
     Basic {
+        /// Split axis: 0 x, 1 y, 2 z.
         axis: u8,
+        /// Position of the split plane on `axis`, in stored coordinates.
         split: f32,
+        /// Offset of the left child in 8-byte units from this node, at most
+        /// [`MAX_CHILD_UNITS`]; 0 when the left child is empty.
         left: u16,
+        /// Offset of the right child, as `left`; above `left` when both are present.
         right: u16,
     },
+    /// An inner node at the bottom of a treelet: its children are treelet roots in a block of
+    /// the next LOD level, and it carries a LOD entry (voxel and/or R-LOD) and maybe a proxy.
     Lod {
+        /// Split axis: 0 x, 1 y, 2 z.
         axis: u8,
+        /// Position of the split plane on `axis`, in stored coordinates.
         split: f32,
+        /// Radius of the sphere enclosing the node's cell (half its diagonal, rounded up to
+        /// the next f32); never larger than an ancestor LOD node's.
         radius: f32,
+        /// Whether the left child exists.
         left_present: bool,
+        /// Whether the right child exists.
         right_present: bool,
         /// Index of the first present child's treelet in `child_block`.
         child_treelet: u32,
+        /// Id of the treelet block (of the next level) holding the children's treelets.
         child_block: u32,
+        /// Byte offset of the node's LOD entry in its block's LOD area, a multiple of 4
+        /// (called the voxel offset in 1.0).
         voxel_offset: u32,
+        /// Proxy id standing for the node's subtree, or [`NO_PROXY`].
         proxy: u32,
     },
+    /// A leaf: a run of entries in a triangle block's list section.
     Leaf {
+        /// Number of triangles, 1 ..= [`MAX_LEAF_TRIANGLES`].
         count: u16,
+        /// First entry of the run in the triangle block's list section.
         first: u16,
+        /// Id of the triangle block holding the triangles.
         block: u32,
     },
 }
@@ -64,6 +89,8 @@ pub fn lod_child_treelets(first: u32, present: [bool; 2]) -> [Option<u32>; 2] {
 }
 
 impl Node {
+    /// Bytes the node takes in the node area: [`NODE_BASIC_LEN`], [`NODE_LOD_LEN`] or
+    /// [`NODE_LEAF_LEN`].
     pub fn byte_len(&self) -> usize {
         match self {
             Node::Basic { .. } => NODE_BASIC_LEN,

@@ -4,6 +4,7 @@ use super::sample::Sample;
 use crate::bytes::{f32_at, u32_at, PutLe};
 use crate::error::{bad, Code, Result};
 
+/// Bytes of one proxy record; a proxy block's raw length is this times its item count.
 pub const PROXY_LEN: usize = 80;
 
 /// The 18 directions, unnormalised, in record order.
@@ -28,15 +29,22 @@ pub const PROXY_DIRECTIONS: [[f32; 3]; 18] = [
     [0.0, -1.0, -1.0],
 ];
 
+/// What a LOD node's subtree looks like from 18 directions, resident from open so a renderer
+/// has something to show before the subtree's blocks arrive.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ProxyRecord {
     /// The treelet block holding the LOD node this proxy stands for.
     pub node_block: u32,
+    /// Surface area of the subtree's triangles, in stored units squared, ≥ 0: a hint for
+    /// fetch priority.
     pub area: f32,
+    /// Sample `k` is what a ray travelling along [`PROXY_DIRECTIONS`]`[k]` sees, or
+    /// [`Sample::EMPTY`] when nothing is seen from there.
     pub samples: [Sample; 18],
 }
 
 impl ProxyRecord {
+    /// Appends the record's 80 bytes to `v`.
     pub fn encode_into(&self, v: &mut Vec<u8>) {
         v.put_u32(self.node_block);
         v.put_f32(self.area);
@@ -45,6 +53,8 @@ impl ProxyRecord {
         }
     }
 
+    /// Decodes and checks record `index` of a proxy block's raw bytes `b` (area finite and
+    /// non-negative, every sample valid or exactly [`Sample::EMPTY`]).
     pub fn decode(b: &[u8], index: usize) -> Result<ProxyRecord> {
         let base = index * PROXY_LEN;
         let c = Code::ProxyLayout;

@@ -10,6 +10,7 @@ use crate::bytes::{f32_at, u16_at, u32_at, PutLe};
 use crate::error::{bad, Code, Result};
 use crate::header::{Header, INCOMPAT_LOD_NO_VOXELS, INCOMPAT_LOD_RLODS};
 
+/// Bytes of one R-LOD record in a LOD area.
 pub const RLOD_LEN: usize = 24;
 /// A stored normal's squared length must lie within this of 1.
 pub const RLOD_NORMAL_TOLERANCE: f32 = 1e-3;
@@ -20,7 +21,9 @@ const CODE_STEPS: f64 = 127.5;
 /// Which LOD representations a file's LOD nodes carry (header feature bits, spec §3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct LodKinds {
+    /// Every LOD node's entry starts with a voxel.
     pub voxel: bool,
+    /// Every LOD node's entry holds an R-LOD record (after the voxel, if any).
     pub rlod: bool,
 }
 
@@ -32,14 +35,17 @@ impl Default for LodKinds {
 }
 
 impl LodKinds {
+    /// Voxels only: every 1.0 file, and the default.
     pub const VOXEL: LodKinds = LodKinds {
         voxel: true,
         rlod: false,
     };
+    /// R-LODs only (`LOD_RLODS` and `LOD_NO_VOXELS`).
     pub const RLOD: LodKinds = LodKinds {
         voxel: false,
         rlod: true,
     };
+    /// A voxel then an R-LOD record per LOD node (`LOD_RLODS` alone).
     pub const BOTH: LodKinds = LodKinds {
         voxel: true,
         rlod: true,
@@ -74,15 +80,19 @@ impl LodKinds {
 }
 
 /// One R-LOD record. The plane is `{x : normal · x = offset}` in stored coordinates; the
-/// deviation and expansion are codes in steps of a node radius / [`CODE_STEPS`], rounded up by
+/// deviation and expansion are codes in steps of a node radius / 127.5, rounded up by
 /// the writer so the bounds they decode to never fall short.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rlod {
+    /// Unit plane normal (|n|² within [`RLOD_NORMAL_TOLERANCE`] of 1), finite.
     pub normal: [f32; 3],
+    /// The plane's `d` in `normal · x = d`, in stored coordinates; finite.
     pub offset: f32,
     /// Linear RGB, value / 255.
     pub colour: [u8; 3],
+    /// Code of the bound on the triangles' distance from the plane; see [`Rlod::deviation`].
     pub deviation_code: u8,
+    /// Code of how far outside the cell the plane still counts; see [`Rlod::expansion`].
     pub expansion_code: u8,
 }
 
@@ -127,10 +137,12 @@ impl Rlod {
         }
     }
 
+    /// The colour as linear RGB in 0..=1.
     pub fn colour_f32(&self) -> [f32; 3] {
         self.colour.map(|c| f32::from(c) / 255.0)
     }
 
+    /// Appends the record's 24 bytes to `v`, reserved bytes zero.
     pub fn encode_into(&self, v: &mut Vec<u8>) {
         for c in self.normal {
             v.put_f32(c);

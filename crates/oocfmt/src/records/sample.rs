@@ -50,6 +50,7 @@ impl Sample {
     /// The proxy sample for a direction from which nothing is seen.
     pub const EMPTY: Sample = Sample(EMPTY);
 
+    /// The same sample with the single flag (bit 31) set or cleared.
     pub fn with_single(self, single: bool) -> Sample {
         Sample(if single {
             self.0 | SINGLE
@@ -58,14 +59,17 @@ impl Sample {
         })
     }
 
+    /// Whether bit 31 is set: the only sample of a 1-sample voxel.
     pub fn is_single(self) -> bool {
         self.0 & SINGLE != 0
     }
 
+    /// Whether bit 30 is set: a proxy direction from which nothing is seen.
     pub fn is_empty(self) -> bool {
         self.0 & EMPTY != 0
     }
 
+    /// The colour, linear RGB in 0..=1 in steps of 1/31.
     pub fn colour(self) -> [f32; 3] {
         let c = |s: u32| ((self.0 >> s) & 31) as f32 / 31.0;
         [c(0), c(5), c(10)]
@@ -107,11 +111,14 @@ impl Sample {
 /// A LOD voxel: one sample for the whole cell, or one per face (−x, +x, −y, +y, −z, +z).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Voxel {
+    /// One sample for every direction (stored with the single flag; decoded without it).
     Single(Sample),
+    /// One sample per cell face, in the order −x, +x, −y, +y, −z, +z.
     Six([Sample; 6]),
 }
 
 impl Voxel {
+    /// Bytes the voxel takes in the LOD area: 4 or 24.
     pub fn byte_len(&self) -> usize {
         match self {
             Voxel::Single(_) => 4,
@@ -119,6 +126,8 @@ impl Voxel {
         }
     }
 
+    /// Appends the voxel's samples to `v`, setting the single flag on a 1-sample voxel and
+    /// clearing it on the six of a 6-sample one.
     pub fn encode_into(&self, v: &mut Vec<u8>) {
         match self {
             Voxel::Single(s) => v.extend_from_slice(&s.with_single(true).0.to_le_bytes()),

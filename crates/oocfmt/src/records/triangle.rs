@@ -4,8 +4,11 @@
 use crate::bytes::{u16_at, u32_at, PutLe};
 use crate::error::{bad, Code, Error, Result};
 
+/// Attribute bit: vertices carry an octahedral normal.
 pub const ATTR_NORMALS: u16 = 1 << 0;
+/// Attribute bit: vertices carry an RGBA colour.
 pub const ATTR_COLOURS: u16 = 1 << 1;
+/// Attribute bit: triangles carry a material index.
 pub const ATTR_MATERIALS: u16 = 1 << 2;
 const KNOWN_ATTRS: u16 = ATTR_NORMALS | ATTR_COLOURS | ATTR_MATERIALS;
 const HEAD_LEN: usize = 16;
@@ -29,17 +32,23 @@ fn vertex_len(attrs: u16) -> usize {
         + if attrs & ATTR_COLOURS != 0 { 4 } else { 0 }
 }
 
+/// One triangle record of a triangle block.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 pub struct Triangle {
+    /// Indices of its three vertices in the block's vertex section.
     pub v: [u16; 3],
+    /// Index into the metadata's materials, where the block has [`ATTR_MATERIALS`].
     pub material: Option<u16>,
 }
 
+/// One vertex record of a triangle block, shared by the block's triangles.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Vertex {
+    /// Position in stored coordinates (world = metadata origin + this).
     pub position: [f32; 3],
     /// Octahedral-encoded normal, as stored.
     pub normal: Option<[i16; 2]>,
+    /// RGBA colour, value / 255, where the block has [`ATTR_COLOURS`].
     pub colour: Option<[u8; 4]>,
 }
 
@@ -180,22 +189,28 @@ impl<'a> TriangleBlock<'a> {
         })
     }
 
+    /// Entries in the list section (the leaves' triangle indices).
     pub fn list_count(&self) -> usize {
         self.list.len() / 2
     }
 
+    /// Triangle records in the block, copies included.
     pub fn triangle_count(&self) -> usize {
         self.triangles.len() / triangle_len(self.attrs)
     }
 
+    /// Vertex records in the block.
     pub fn vertex_count(&self) -> usize {
         self.vertices.len() / vertex_len(self.attrs)
     }
 
+    /// How many of the first triangles are primaries (the one copy of an input triangle that
+    /// exporters emit); the rest are copies.
     pub fn primary_count(&self) -> usize {
         usize::from(self.primary)
     }
 
+    /// The block's attribute bits (`ATTR_*`), equal to the metadata schema's.
     pub fn attributes(&self) -> u16 {
         self.attrs
     }
@@ -205,11 +220,13 @@ impl<'a> TriangleBlock<'a> {
         u16_at(self.list, 2 * i, Code::TreeReference)
     }
 
+    /// Triangle record `i`; an error if `i` is past the triangle section.
     pub fn triangle(&self, i: usize) -> Result<Triangle> {
         let record = record(self.triangles, i, triangle_len(self.attrs), "triangle")?;
         Ok(triangle_from(record, self.attrs))
     }
 
+    /// Vertex record `i`; an error if `i` is past the vertex section.
     pub fn vertex(&self, i: usize) -> Result<Vertex> {
         let record = record(self.vertices, i, vertex_len(self.attrs), "vertex")?;
         Ok(vertex_from(record, self.attrs))
@@ -305,6 +322,7 @@ pub struct TriangleBlockWriter {
 }
 
 impl TriangleBlockWriter {
+    /// An empty block whose records carry the attributes `attrs` (`ATTR_*` bits).
     pub fn new(attrs: u16) -> Self {
         TriangleBlockWriter {
             attrs,
@@ -315,18 +333,22 @@ impl TriangleBlockWriter {
         }
     }
 
+    /// Appends a vertex; returns its index, or an error once the block holds [`MAX_ITEMS`].
     pub fn push_vertex(&mut self, v: Vertex) -> Result<u16> {
         Self::index(self.vertices.len(), "vertices")?;
         self.vertices.push(v);
         Ok((self.vertices.len() - 1) as u16)
     }
 
+    /// Appends a triangle; returns its index, or an error once the block holds [`MAX_ITEMS`].
     pub fn push_triangle(&mut self, t: Triangle) -> Result<u16> {
         Self::index(self.triangles.len(), "triangles")?;
         self.triangles.push(t);
         Ok((self.triangles.len() - 1) as u16)
     }
 
+    /// Appends a list entry naming triangle `triangle`; returns the entry's index (a leaf's
+    /// `first`), or an error once the list holds [`MAX_ITEMS`].
     pub fn push_list(&mut self, triangle: u16) -> Result<u16> {
         Self::index(self.list.len(), "list entries")?;
         self.list.push(triangle);
@@ -355,6 +377,7 @@ impl TriangleBlockWriter {
             + vertices * vertex_len(attrs)
     }
 
+    /// The raw length the block will have.
     pub fn raw_len(&self) -> usize {
         Self::raw_len_for(
             self.attrs,
@@ -364,10 +387,12 @@ impl TriangleBlockWriter {
         )
     }
 
+    /// Triangles pushed so far.
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
     }
 
+    /// The block's raw bytes: header, list, triangle and vertex sections, zero-padded.
     pub fn finish(self) -> Vec<u8> {
         let mut v = Vec::with_capacity(self.raw_len());
         v.put_u32(self.list.len() as u32);
