@@ -16,7 +16,6 @@ use oocfmt_trace::compare::within_tolerance;
 use oocfmt_trace::{render, BlockingCache, Camera, RenderOptions, Scene};
 
 use crate::error::CliError;
-use crate::render::cli_error;
 
 #[derive(Clone, Copy, Debug, Serialize, PartialEq)]
 pub struct Accuracy {
@@ -50,8 +49,7 @@ pub fn measure(
         .iter()
         .zip(files)
         .map(|(camera, file)| {
-            let (reference, _) =
-                render(scene, &cache, camera, &reference_opts).map_err(cli_error)?;
+            let (reference, _) = render(scene, &cache, camera, &reference_opts)?;
             let (w, h, rgb) = read_rgb8(file)?;
             if (w, h) != (reference.width, reference.height) {
                 return Err(CliError::Io {

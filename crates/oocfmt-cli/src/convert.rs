@@ -2,9 +2,8 @@
 
 use std::path::PathBuf;
 
-use oocfmt::records::LodKinds;
 use oocfmt::{Codec, WriteOptions};
-use oocfmt_build::convert::{convert, ConvertError, ConvertOptions, MIN_MEM_LIMIT};
+use oocfmt_build::convert::{convert, ConvertOptions, MIN_MEM_LIMIT};
 use oocfmt_build::kdtree::KdBuildOptions;
 use oocfmt_build::layout::LayoutOptions;
 use oocfmt_build::report::{total_memory, ConvertReport};
@@ -12,6 +11,7 @@ use oocfmt_meshio::import::gltf::GltfOptions;
 use oocfmt_meshio::import::obj::ObjOptions;
 use oocfmt_meshio::import::{Recentre, Skipped};
 
+use crate::args::{self, use_threads, LodKindsArg};
 use crate::error::{to_json, CliError, CliResult};
 use crate::out::out;
 use crate::progress::Phases;
@@ -25,7 +25,7 @@ pub struct Args {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Block codec: none, lz4, zstd or zstd:LEVEL (none is what a memory-mapped reader wants)
-    #[arg(long, default_value = "lz4", value_parser = crate::demo::parse_codec)]
+    #[arg(long, default_value = "lz4", value_parser = args::parse_codec)]
     pub codec: Codec,
     /// Block size in bytes: a power of two from 4096 to 1048576
     #[arg(long, default_value_t = 65536)]
@@ -38,8 +38,8 @@ pub struct Args {
     pub treelet_height: u8,
     /// LOD representations to store in the LOD nodes: voxel (Áfra 2012), rlod (planes, Yoon
     /// et al. 2006) or both, in core or out of core alike
-    #[arg(long, default_value = "voxel", value_parser = parse_lod_kinds)]
-    pub lod: LodKinds,
+    #[arg(long, value_enum, default_value = "voxel")]
+    pub lod: LodKindsArg,
     /// Refuse the first bad triangle (NaN, out-of-range index, zero area) instead of dropping it
     #[arg(long)]
     pub strict: bool,
@@ -73,7 +73,7 @@ pub struct Args {
 
 /// A `--mem-limit`: a size of at least [`MIN_MEM_LIMIT`].
 fn parse_mem_limit(s: &str) -> Result<u64, String> {
-    let v = parse_size(s)?;
+    let v = args::parse_byte_size(s)?;
     if v < MIN_MEM_LIMIT {
         return Err(format!(
             "`{s}`: below the minimum of {}M (the importers and one chunk of the out-of-core build need that much)",
@@ -83,46 +83,11 @@ fn parse_mem_limit(s: &str) -> Result<u64, String> {
     Ok(v)
 }
 
-/// Parses sizes such as `512M`, `2G`, `1.5G` or a plain byte count.
-pub fn parse_size(s: &str) -> Result<u64, String> {
-    let t = s.trim();
-    let (num, mult) = match t.chars().last().map(|c| c.to_ascii_uppercase()) {
-        Some('K') => (&t[..t.len() - 1], 1u64 << 10),
-        Some('M') => (&t[..t.len() - 1], 1 << 20),
-        Some('G') => (&t[..t.len() - 1], 1 << 30),
-        Some('T') => (&t[..t.len() - 1], 1 << 40),
-        _ => (t, 1),
-    };
-    let v: f64 = num
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{s}`: expected a size like 512M or 2G"))?;
-    if !(v.is_finite() && v > 0.0) {
-        return Err(format!("`{s}`: the size must be positive"));
-    }
-    Ok((v * mult as f64) as u64)
-}
-
-/// A `--lod` for `convert`: voxel, rlod or both.
-fn parse_lod_kinds(s: &str) -> Result<LodKinds, String> {
-    match s {
-        "voxel" => Ok(LodKinds::VOXEL),
-        "rlod" => Ok(LodKinds::RLOD),
-        "both" => Ok(LodKinds::BOTH),
-        _ => Err(format!("`{s}`: expected voxel, rlod or both")),
-    }
-}
-
 pub fn run(a: &Args) -> CliResult {
-    if let Some(n) = a.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build_global()
-            .map_err(|e| CliError::Usage(format!("--threads {n}: {e}")))?;
-    }
+    use_threads(a.threads)?;
     let write = WriteOptions {
         codec: a.codec,
-        lod: a.lod,
+        lod: a.lod.into(),
         ..WriteOptions::default()
     }
     .with_block_size(a.block_size)?;
@@ -148,15 +113,7 @@ pub fn run(a: &Args) -> CliResult {
         recentre: a.recentre,
     };
     let mut progress = Phases::new(a.quiet);
-    let report = convert(&a.inputs, &a.output, &opts, &mut progress).map_err(|e| match e {
-        ConvertError::Import(oocfmt_meshio::import::ImportError::Io { path, source }) => {
-            CliError::Io { path, source }
-        }
-        ConvertError::UnknownFormat(path) => CliError::Usage(format!(
-            "{path}: unknown input format (expected .obj, .gltf or .glb)"
-        )),
-        other => CliError::Build(other.to_string()),
-    })?;
+    let report = convert(&a.inputs, &a.output, &opts, &mut progress)?;
     if let Some(path) = &a.report_json {
         std::fs::write(path, to_json(&report)?).map_err(|e| CliError::Io {
             path: path.display().to_string(),
@@ -254,18 +211,4 @@ fn render(r: &ConvertReport) -> String {
         );
     }
     o
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_size;
-
-    #[test]
-    fn sizes_parse() {
-        assert_eq!(parse_size("2G"), Ok(2 << 30));
-        assert_eq!(parse_size("512m"), Ok(512 << 20));
-        assert_eq!(parse_size("1000"), Ok(1000));
-        assert!(parse_size("-1G").is_err());
-        assert!(parse_size("lots").is_err());
-    }
 }

@@ -17,9 +17,9 @@ use oocfmt_trace::compare::compare;
 use oocfmt_trace::output::write_png;
 use oocfmt_trace::{render, BlockingCache, Camera, FrameStats, RenderOptions, Scene};
 
+use crate::args::parse_codec;
 use crate::error::{CliError, CliResult};
 use crate::out::{out, outln};
-use crate::render::cli_error;
 use crate::{inspect, progress};
 
 #[derive(clap::Args)]
@@ -47,10 +47,6 @@ pub struct Args {
     pub poe: f32,
 }
 
-pub fn parse_codec(s: &str) -> Result<Codec, String> {
-    Codec::parse(s).map_err(|e| e.to_string())
-}
-
 pub fn run(a: &Args) -> CliResult {
     if !(a.poe.is_finite() && a.poe > 0.0) {
         return Err(CliError::Usage(format!(
@@ -69,21 +65,39 @@ pub fn run(a: &Args) -> CliResult {
     })?;
     let obj = a.out.join("mandelbulb.obj");
     let path = a.out.join("mandelbulb.oocf");
+    generate(&obj, a.triangles)?;
+    let file_length = build(a, &obj, &path, write)?;
+    let reader = Reader::open(&path, ReadOptions::default())?;
+    outln!()?;
+    out!("{}", inspect::render(&oocfmt::summary::summarize(&reader)?))?;
+    outln!()?;
+    if !verify_deep(&path, file_length)? {
+        return Ok(1);
+    }
+    outln!()?;
+    render_both(&path, &a.out, a.width, a.poe)?;
+    outln!(
+        "\nnext: oocfmt render {0} -o view.png --poe 1 --eye X,Y,Z; oocfmt inspect {0}",
+        path.display()
+    )?;
+    Ok(0)
+}
 
+/// Writes a Mandelbulb of about `triangles` triangles to `obj`.
+fn generate(obj: &Path, triangles: u64) -> Result<(), CliError> {
     let bar = progress::count("generating a Mandelbulb", false);
     let t = Instant::now();
     let gen = mandelbulb::write_obj(
-        &obj,
+        obj,
         &MandelbulbOptions {
-            triangles: a.triangles,
+            triangles,
             ..MandelbulbOptions::default()
         },
         &mut |done, total| {
             bar.set_length(total);
             bar.set_position(done)
         },
-    )
-    .map_err(|e| CliError::Build(e.to_string()))?;
+    )?;
     bar.finish_and_clear();
     outln!(
         "generated  {} ({} triangles, {:.1} MB) in {:.2} s",
@@ -91,8 +105,11 @@ pub fn run(a: &Args) -> CliResult {
         gen.triangles,
         gen.bytes as f64 / 1e6,
         t.elapsed().as_secs_f64()
-    )?;
+    )
+}
 
+/// Converts `obj` into the container `path`; returns its length in bytes.
+fn build(a: &Args, obj: &Path, path: &Path, write: WriteOptions) -> Result<u64, CliError> {
     let opts = ConvertOptions {
         layout: LayoutOptions {
             write,
@@ -105,8 +122,7 @@ pub fn run(a: &Args) -> CliResult {
         ..ConvertOptions::default()
     };
     let mut phases = progress::Phases::new(false);
-    let report = convert(std::slice::from_ref(&obj), &path, &opts, &mut phases)
-        .map_err(|e| CliError::Build(e.to_string()))?;
+    let report = convert(&[obj.to_path_buf()], path, &opts, &mut phases)?;
     outln!(
         "converted  {} ({} bytes) in {:.2} s: {:.0} triangles/s, peak memory {:.0} MiB",
         path.display(),
@@ -115,14 +131,13 @@ pub fn run(a: &Args) -> CliResult {
         report.triangles_per_second,
         report.peak_memory_bytes.unwrap_or(0) as f64 / 1048576.0
     )?;
-    let file_length = report.file_bytes;
+    Ok(report.file_bytes)
+}
 
-    let reader = Reader::open(&path, ReadOptions::default())?;
-    outln!()?;
-    out!("{}", inspect::render(&oocfmt::summary::summarize(&reader)?))?;
-    outln!()?;
-
-    let src = FileSource::open(&path).map_err(|e| CliError::Io {
+/// Verifies the container at `path` deeply, printing every issue and the verdict; returns
+/// whether it is valid.
+fn verify_deep(path: &Path, file_length: u64) -> Result<bool, CliError> {
+    let src = FileSource::open(path).map_err(|e| CliError::Io {
         path: path.display().to_string(),
         source: e,
     })?;
@@ -147,22 +162,13 @@ pub fn run(a: &Args) -> CliResult {
         report.warnings,
         file_length as f64 / secs.max(1e-9) / 1e6
     )?;
-    if !report.valid {
-        return Ok(1);
-    }
-    outln!()?;
-    render_both(&path, &a.out, a.width, a.poe)?;
-    outln!(
-        "\nnext: oocfmt render {0} -o view.png --poe 1 --eye X,Y,Z; oocfmt inspect {0}",
-        path.display()
-    )?;
-    Ok(0)
+    Ok(report.valid)
 }
 
 /// Renders the default view at full detail and at `poe`, writes both PNGs, and prints the
 /// figures of each and the error of the second against the first.
 fn render_both(model: &Path, out: &Path, width: u32, poe: f32) -> Result<(), CliError> {
-    let scene = Arc::new(Scene::open(model).map_err(cli_error)?);
+    let scene = Arc::new(Scene::open(model)?);
     let m = scene.metadata();
     let camera = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, width, width * 3 / 4);
     let mut images = Vec::new();
@@ -174,15 +180,15 @@ fn render_both(model: &Path, out: &Path, width: u32, poe: f32) -> Result<(), Cli
             ..RenderOptions::default()
         };
         // The first frame loads what the view needs; the second is timed warm.
-        render(&scene, &cache, &camera, &opts).map_err(cli_error)?;
-        let (image, stats) = render(&scene, &cache, &camera, &opts).map_err(cli_error)?;
+        render(&scene, &cache, &camera, &opts)?;
+        let (image, stats) = render(&scene, &cache, &camera, &opts)?;
         let png = out.join(format!("mandelbulb-poe{p}.png"));
-        write_png(&png, image.width, image.height, &image.rgb).map_err(cli_error)?;
+        write_png(&png, image.width, image.height, &image.rgb)?;
         print_frame(&png, &stats)?;
         images.push(image);
     }
     if let [reference, coarse] = &images[..] {
-        let e = compare(reference, coarse, 8).map_err(|e| CliError::Build(e.to_string()))?;
+        let e = compare(reference, coarse, 8)?;
         let pixels = reference.depth.len().max(1) as f64;
         outln!(
             "error      --poe {poe} against --poe 0: RMSE {:.2} of 255, PSNR {:.1} dB, SSIM {:.4}, {:.2} % of pixels within 8 levels per channel, {:.3} % of hits and misses differ",

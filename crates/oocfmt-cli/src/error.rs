@@ -1,4 +1,33 @@
-//! The CLI's errors and the exit codes they map to; the only place errors become exit codes.
+//! The CLI's errors and the exit codes they map to: the only place errors become exit codes.
+//! The library errors are kept as they are (typed, each saying what and where) and sorted
+//! into the codes here, in [`CliError::exit_code`]:
+//!
+//! - [`EXIT_INVALID`] (1): an input is invalid: a container fails verification or cannot be
+//!   read as one, a model cannot be imported or built into one;
+//! - [`EXIT_USAGE`] (2): the command could not run: bad usage (a flag, a value, a combination,
+//!   a LOD kind the file lacks, a bad camera path), or an I/O error (a missing input, an
+//!   output that cannot be written);
+//! - [`EXIT_INTERNAL`] (3): a bug in oocfmt: a report that cannot be written as JSON, an
+//!   invariant of the builder that broke, images that should match in size and do not.
+//!
+//! 0 is success; `verify` also exits 1 for a file it finds invalid.
+
+use oocfmt_build::convert::ConvertError;
+use oocfmt_build::kdtree::KdError;
+use oocfmt_build::layout::LayoutError;
+use oocfmt_build::ooc::OocError;
+use oocfmt_meshio::export::ExportError;
+use oocfmt_meshio::import::ImportError;
+use oocfmt_scenes::GenError;
+use oocfmt_trace::compare::SizeMismatch;
+use oocfmt_trace::TraceError;
+
+/// An input is invalid.
+pub const EXIT_INVALID: u8 = 1;
+/// The command could not run: usage or I/O.
+pub const EXIT_USAGE: u8 = 2;
+/// A bug in oocfmt.
+pub const EXIT_INTERNAL: u8 = 3;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CliError {
@@ -12,26 +41,154 @@ pub enum CliError {
         source: std::io::Error,
     },
     #[error("{0}")]
-    Build(String),
+    Trace(#[from] TraceError),
+    #[error("{0}")]
+    Convert(#[from] ConvertError),
+    #[error("{0}")]
+    Export(#[from] ExportError),
+    #[error("{0}")]
+    Gen(#[from] GenError),
+    /// Two images compared that should have the same size.
+    #[error("{0}")]
+    Compare(#[from] SizeMismatch),
+    #[error("JSON output failed: {0}")]
+    Json(#[from] serde_json::Error),
 }
 
 impl CliError {
+    /// The exit code of this error (the module documentation says what each means).
     pub fn exit_code(&self) -> u8 {
+        use CliError as C;
         match self {
-            CliError::Format(e)
-                if e.code() == oocfmt::Code::Io || e.code() == oocfmt::Code::InvalidParameter =>
-            {
-                2
+            C::Format(e)
+            | C::Trace(TraceError::Format(e))
+            | C::Export(ExportError::Format(e))
+            | C::Convert(
+                ConvertError::Format(e)
+                | ConvertError::Layout(LayoutError::Format(e))
+                | ConvertError::OutOfCore(
+                    OocError::Format(e) | OocError::Layout(LayoutError::Format(e)),
+                ),
+            ) => format_exit_code(e),
+            C::Usage(_)
+            | C::Io { .. }
+            | C::Trace(
+                TraceError::Io { .. }
+                | TraceError::Png { .. }
+                | TraceError::Camera(_)
+                | TraceError::Options(_)
+                | TraceError::Path { .. }
+                | TraceError::LodKind { .. },
+            )
+            | C::Convert(
+                ConvertError::UnknownFormat(_)
+                | ConvertError::SpillDir { .. }
+                | ConvertError::Import(ImportError::Io { .. })
+                | ConvertError::OutOfCore(
+                    OocError::Spill { .. }
+                    | OocError::SpillLength { .. }
+                    | OocError::Import(ImportError::Io { .. }),
+                ),
+            )
+            | C::Export(ExportError::Write(_))
+            | C::Gen(GenError::Write(_) | GenError::Option(_) | GenError::TooLarge(_)) => {
+                EXIT_USAGE
             }
-            CliError::Format(_) | CliError::Build(_) => 1,
-            CliError::Usage(_) | CliError::Io { .. } => 2,
+            C::Convert(
+                ConvertError::Tree(e)
+                | ConvertError::Layout(LayoutError::Tree(e))
+                | ConvertError::OutOfCore(OocError::Tree(e) | OocError::Layout(LayoutError::Tree(e))),
+            ) => match e {
+                KdError::MaxLeafTriangles(_) | KdError::MaxDepth(_) | KdError::BadOption { .. } => {
+                    EXIT_USAGE
+                }
+                _ => EXIT_INVALID,
+            },
+            C::Convert(ConvertError::Layout(l) | ConvertError::OutOfCore(OocError::Layout(l))) => {
+                match l {
+                    LayoutError::Internal(_) => EXIT_INTERNAL,
+                    LayoutError::TreeletHeight(_) | LayoutError::VoxelThreshold(_) => EXIT_USAGE,
+                    _ => EXIT_INVALID,
+                }
+            }
+            C::Convert(ConvertError::Import(_) | ConvertError::OutOfCore(OocError::Import(_)))
+            | C::Export(
+                ExportError::CountMismatch { .. }
+                | ExportError::MaterialOutOfRange { .. }
+                | ExportError::TooManyVertices { .. }
+                | ExportError::Changed { .. },
+            ) => EXIT_INVALID,
+            C::Compare(_) | C::Json(_) => EXIT_INTERNAL,
         }
+    }
+}
+
+/// A format error is the file's fault unless it is an I/O failure or an option the caller
+/// passed.
+fn format_exit_code(e: &oocfmt::Error) -> u8 {
+    match e.code() {
+        oocfmt::Code::Io | oocfmt::Code::InvalidParameter => EXIT_USAGE,
+        _ => EXIT_INVALID,
     }
 }
 
 pub type CliResult = Result<u8, CliError>;
 
 pub fn to_json<T: serde::Serialize>(value: &T) -> Result<String, CliError> {
-    serde_json::to_string_pretty(value)
-        .map_err(|e| CliError::Usage(format!("JSON output failed: {e}")))
+    Ok(serde_json::to_string_pretty(value)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn errors_map_to_their_documented_codes() {
+        let io = || std::io::Error::other("disk full");
+        assert_eq!(CliError::Usage("x".into()).exit_code(), EXIT_USAGE);
+        assert_eq!(
+            CliError::Trace(TraceError::Options("x".into())).exit_code(),
+            EXIT_USAGE
+        );
+        assert_eq!(
+            CliError::Convert(ConvertError::UnknownFormat("a.stl".into())).exit_code(),
+            EXIT_USAGE
+        );
+        assert_eq!(
+            CliError::Convert(ConvertError::Import(ImportError::Empty { dropped: 1 })).exit_code(),
+            EXIT_INVALID
+        );
+        assert_eq!(
+            CliError::Convert(ConvertError::Layout(LayoutError::Internal("x"))).exit_code(),
+            EXIT_INTERNAL
+        );
+        assert_eq!(
+            CliError::Convert(ConvertError::OutOfCore(OocError::Spill {
+                path: "s".into(),
+                source: io()
+            }))
+            .exit_code(),
+            EXIT_USAGE
+        );
+        assert_eq!(
+            CliError::Convert(ConvertError::Tree(KdError::MaxLeafTriangles(0))).exit_code(),
+            EXIT_USAGE
+        );
+        assert_eq!(
+            CliError::Convert(ConvertError::Tree(KdError::TooManyNodes)).exit_code(),
+            EXIT_INVALID
+        );
+        assert_eq!(
+            CliError::Gen(GenError::Option("x".into())).exit_code(),
+            EXIT_USAGE
+        );
+        assert_eq!(
+            CliError::Export(ExportError::Changed { file: "f".into() }).exit_code(),
+            EXIT_INVALID
+        );
+        let json = serde_json::from_str::<u8>("x").err();
+        if let Some(e) = json {
+            assert_eq!(CliError::Json(e).exit_code(), EXIT_INTERNAL);
+        }
+    }
 }

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use oocfmt_meshio::export::{write_obj, write_ply, ExportError, ExportOptions};
+use oocfmt_meshio::export::{write_obj, write_ply, ExportOptions};
 
 use crate::error::{to_json, CliError, CliResult};
 use crate::out::outln;
@@ -51,10 +51,7 @@ pub fn run(a: &Args) -> CliResult {
         }
     };
     bar.finish_and_clear();
-    let report = result.map_err(|e| match e {
-        ExportError::Format(f) => CliError::Format(f),
-        other => CliError::Build(other.to_string()),
-    })?;
+    let report = result?;
     if a.json {
         outln!("{}", to_json(&report)?)?;
     } else {

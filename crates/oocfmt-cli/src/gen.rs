@@ -6,7 +6,7 @@ use oocfmt_scenes::cad::{self, CadOptions};
 use oocfmt_scenes::mandelbulb::{self, MandelbulbOptions};
 use oocfmt_scenes::GenReport;
 
-use crate::error::{to_json, CliError, CliResult};
+use crate::error::{to_json, CliResult};
 use crate::out::outln;
 use crate::progress;
 
@@ -74,7 +74,7 @@ pub fn run(a: &Args) -> CliResult {
         ),
     };
     bar.finish_and_clear();
-    let report: GenReport = result.map_err(|e| CliError::Build(e.to_string()))?;
+    let report: GenReport = result?;
     if c.json {
         outln!("{}", to_json(&report)?)?;
     } else {

@@ -1,5 +1,6 @@
 //! `oocfmt inspect`: a summary for people, or JSON for programs; one block decoded with `--block`.
 
+use std::fmt::Write;
 use std::path::PathBuf;
 
 use oocfmt::summary::{summarize, Summary};
@@ -60,8 +61,16 @@ fn mib(b: u64) -> String {
 
 /// The human-readable summary.
 pub fn render(s: &Summary) -> String {
-    use std::fmt::Write;
     let mut o = String::new();
+    header(&mut o, s);
+    levels(&mut o, s);
+    storage_and_tree(&mut o, s);
+    metadata(&mut o, s);
+    o
+}
+
+/// The file, its format and features, LOD kinds and identity.
+fn header(o: &mut String, s: &Summary) {
     let feats = if s.feature_names.is_empty() {
         "none".to_string()
     } else {
@@ -93,6 +102,10 @@ pub fn render(s: &Summary) -> String {
     );
     let _ = writeln!(o, "identity   {}", s.identity);
     let _ = writeln!(o);
+}
+
+/// The table of LOD levels.
+fn levels(o: &mut String, s: &Summary) {
     let _ = writeln!(
         o,
         "{:>9} {:>7} {:>8} {:>8} {:>7} {:>8} {:>7} {:>7} {:>10} {:>7} {:>10} {:>10} {:>6}  codecs",
@@ -132,6 +145,10 @@ pub fn render(s: &Summary) -> String {
         );
     }
     let _ = writeln!(o);
+}
+
+/// What is resident at open and what is streamed; the tree's figures.
+fn storage_and_tree(o: &mut String, s: &Summary) {
     let res = &s.residency;
     let _ = writeln!(
         o,
@@ -155,6 +172,10 @@ pub fn render(s: &Summary) -> String {
         "triangles  {} ({:.1} bytes per triangle in the file)",
         t.triangles, t.bytes_per_triangle
     );
+}
+
+/// Bounds, schema, materials, build parameters and provenance.
+fn metadata(o: &mut String, s: &Summary) {
     let m = &s.metadata;
     let _ = writeln!(
         o,
@@ -195,7 +216,6 @@ pub fn render(s: &Summary) -> String {
             m.provenance.sources.join(", ")
         }
     );
-    o
 }
 
 pub fn invalid_block(id: u32, count: usize) -> CliError {

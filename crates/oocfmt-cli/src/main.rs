@@ -1,11 +1,20 @@
-//! `oocfmt`: inspect, verify and build `.oocf` containers.
+//! `oocfmt`: inspect, verify, build and render `.oocf` containers. A thin layer over the
+//! library crates: each subcommand's module reads its flags, calls the library and prints or
+//! writes what it returns (docs/cli.md is the reference).
 //!
-//! Exit status: 0 success (for `verify`: the file is valid); 1 the file is invalid or a format
-//! error stopped the command; 2 the command could not run (bad usage, I/O error).
+//! Exit status, decided in one place ([`error::CliError::exit_code`]):
+//! - 0: success (for `verify`: the file is valid; `--help` and `--version` too);
+//! - 1: an input is invalid: `verify` found errors, or a container cannot be read as one, or
+//!   a model cannot be imported or built into one;
+//! - 2: the command could not run: bad usage (an unknown flag, a bad value, a LOD kind the
+//!   file lacks, a bad camera path) or an I/O error (a missing input, an unwritable output);
+//! - 3: an internal error, a bug in oocfmt (a report that cannot be written as JSON, a broken
+//!   invariant of the builder).
 
 #![forbid(unsafe_code)]
 
 mod accuracy;
+mod args;
 mod convert;
 mod curve;
 mod demo;
@@ -31,7 +40,7 @@ use clap::{Parser, Subcommand};
     about = "Out-of-core ray tracing containers (.oocf): inspect, verify, build"
 )]
 #[command(
-    after_help = "Exit status: 0 success (verify: valid), 1 invalid file, 2 could not run (usage, I/O)."
+    after_help = "Exit status: 0 success (verify: valid), 1 invalid input, 2 could not run (usage, I/O), 3 internal error."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -62,7 +71,7 @@ fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
-            let code = if e.use_stderr() { 2 } else { 0 };
+            let code = if e.use_stderr() { error::EXIT_USAGE } else { 0 };
             let _ = e.print();
             return ExitCode::from(code);
         }

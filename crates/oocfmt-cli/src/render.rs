@@ -1,5 +1,6 @@
 //! `oocfmt render`: one frame, or a walkthrough, of a container with the reference CPU ray
-//! tracer.
+//! tracer. The frames are rendered by [`oocfmt_trace::session`]; this module reads the flags,
+//! writes the images and prints the figures.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -7,19 +8,21 @@ use std::sync::Arc;
 use serde::Serialize;
 
 use oocfmt_trace::affinity;
-use oocfmt_trace::blocks::LodKind;
 use oocfmt_trace::cache::asynchronous::AsyncOptions;
-use oocfmt_trace::cache::prefetch::{LookAhead, DEFAULT_FRAMES_AHEAD, DEFAULT_PROBE_ROWS};
-use oocfmt_trace::cache::{Eviction, FetchOrder};
+use oocfmt_trace::cache::prefetch::DEFAULT_FRAMES_AHEAD;
+use oocfmt_trace::cache::MissingBlock;
 use oocfmt_trace::compare::median_sorted;
 use oocfmt_trace::output::{write_pfm, write_png};
-use oocfmt_trace::render::{Endings, FrameStats, Image};
-use oocfmt_trace::{
-    render, walk, AsyncCache, BlockCache, BlockingCache, CacheStats, Camera, MmapCache,
-    RenderOptions, Scene, TraceError,
+use oocfmt_trace::render::{FrameStats, Image};
+use oocfmt_trace::session::{
+    self, Cache, CacheKind, FrameFigures, Settled, WalkFrame, Walkthrough,
 };
+use oocfmt_trace::{walk, Camera, RenderOptions, Scene};
 
 use crate::accuracy::{self, Accuracy};
+use crate::args::{
+    self, budget_bytes, use_threads, CacheArg, EvictionArg, FetchOrderArg, LodArg, Switch, View,
+};
 use crate::error::{to_json, CliError, CliResult};
 use crate::out::outln;
 
@@ -38,18 +41,18 @@ pub struct Args {
     pub poe: f32,
     /// LOD representation to stop on: voxel (Áfra 2012) or rlod (planes, Yoon et al. 2006);
     /// default: voxel when the file has voxels, else rlod. A kind the file lacks is an error
-    #[arg(long, value_parser = parse_lod_kind)]
-    pub lod: Option<LodKind>,
+    #[arg(long, value_enum)]
+    pub lod: Option<LodArg>,
     /// Block cache: `async` (fetcher threads load blocks in the background, rays never wait
     /// and show coarser levels meanwhile; a single frame is rendered until every block it
     /// wants is loaded), `blocking` (a ray waits for every block it needs: the exact
     /// reference), `mmap` (the container mapped into memory and paged by the operating system;
     /// needs a container converted with `--codec none`)
-    #[arg(long, default_value = "async", value_parser = ["async", "blocking", "mmap"])]
-    pub cache: String,
+    #[arg(long, value_enum, default_value = "async")]
+    pub cache: CacheArg,
     /// Fetcher threads of the async cache (default: half the cores, at least one: reading,
     /// decompressing and decoding blocks takes CPU time from the render threads)
-    #[arg(long, default_value_t = default_fetchers(), value_parser = clap::value_parser!(u64).range(1..=64))]
+    #[arg(long, default_value_t = args::default_fetchers(), value_parser = clap::value_parser!(u64).range(1..=64))]
     pub fetchers: u64,
     /// Async cache: block levels the fetchers read ahead below each block a ray asked for, into
     /// free room only (less than half the budget in use); 0 reads only what rays ask for
@@ -59,14 +62,14 @@ pub struct Args {
     /// block, each weighted by the region's angular size) or `wald` (by region size over
     /// distance alone, in 8 discrete queues spread linearly between the last frame's extremes,
     /// after Wald et al. 2004)
-    #[arg(long, default_value = "afra", value_parser = FetchOrder::NAMES)]
-    pub fetch_order: String,
+    #[arg(long, value_enum, default_value = "afra")]
+    pub fetch_order: FetchOrderArg,
     /// Async cache: what makes room: `lru` (the least recently used blocks the frame did not
     /// touch, when fetches need room) or `second-chance` (a clock sweep that spares a block
     /// used since the hand last passed, running once more than 80 % of --cache-mb is held,
     /// after Wald et al. 2004); neither evicts a block the current frame touched
-    #[arg(long, default_value = "lru", value_parser = Eviction::NAMES)]
-    pub eviction: String,
+    #[arg(long, value_enum, default_value = "lru")]
+    pub eviction: EvictionArg,
     /// Async cache: how many nice levels below the render threads the fetcher threads run
     /// (Linux): 0 shares the CPU equally with the render threads (blocks arrive soonest, and a
     /// cold frame slows down while they decode); higher values give the render threads the CPU
@@ -80,16 +83,16 @@ pub struct Args {
     /// rendering, a frame takes at most about 1 / (1 - share / R) times its warm time, 1.08 at
     /// 0.15 on 2 cores. While a walkthrough writes a frame's files the fetchers work without
     /// this limit
-    #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_FETCH_SHARE, value_parser = parse_share)]
+    #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_FETCH_SHARE, value_parser = args::parse_share)]
     pub fetch_share: f64,
     /// Walkthroughs with the async cache: look-ahead prefetching (after iWalk): after each
     /// frame, predict the next cameras from the linear and angular speed of the last two,
     /// trace a coarse grid of probe rays from them against the resident blocks, and fetch the
     /// blocks they miss after every demand fetch, within --prefetch-mb per frame
-    #[arg(long, default_value = "off", value_parser = ["on", "off"])]
-    pub prefetch: String,
+    #[arg(long, value_enum, default_value = "off")]
+    pub prefetch: Switch,
     /// Decoded MiB that look-ahead prefetching may load per frame
-    #[arg(long, default_value_t = 4.0, value_parser = parse_mb)]
+    #[arg(long, default_value_t = 4.0, value_parser = args::parse_mb)]
     pub prefetch_mb: f64,
     /// Frames ahead that look-ahead prefetching predicts and probes (each one)
     #[arg(long, default_value_t = DEFAULT_FRAMES_AHEAD, value_parser = clap::value_parser!(u32).range(1..=16))]
@@ -127,9 +130,8 @@ pub struct Args {
     pub threads: Option<usize>,
     /// Bind each render thread to a core of its own (Linux), when there are as many as the
     /// cores the process may use: two then never share a core while another runs only a
-    /// fetcher. Cold frames lose less time to loading and warm frames gain 2-3 %, but where the
-    /// system stalls a core now and then, a render thread cannot leave it (README, "Render
-    /// threads bound to their cores")
+    /// fetcher. Cold frames lose less time to loading and warm frames gain a little, but where
+    /// the system stalls a core now and then, a render thread cannot leave it
     #[arg(long)]
     pub pin: bool,
     /// Primary rays per pixel, at stratified points of the pixel (deterministic), averaged in
@@ -144,7 +146,7 @@ pub struct Args {
     pub shadows: bool,
     /// The point light of --shadows, X,Y,Z in world coordinates (default: over the camera's
     /// right shoulder, eye + D·(0.5 right + 0.7 up − 0.3 forward), D the model's box diagonal)
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "shadows")]
+    #[arg(long, value_parser = args::parse_vec3, allow_hyphen_values = true, requires = "shadows")]
     pub light: Option<[f64; 3]>,
     /// Ambient occlusion: N rays per primary hit, cosine-weighted over the hemisphere; with
     /// --poe > 0 a voxel ends one when its radius is at most t·√(2/N) (the ray's cone of 2π/N
@@ -153,461 +155,8 @@ pub struct Args {
     pub ao: Option<u32>,
     /// How far ambient-occlusion rays look, in world units (default: 0.1 × the model's box
     /// diagonal)
-    #[arg(long, value_parser = parse_distance, allow_hyphen_values = true, requires = "ao")]
+    #[arg(long, value_parser = args::parse_distance, allow_hyphen_values = true, requires = "ao")]
     pub ao_distance: Option<f32>,
-}
-
-/// MiB, finite, > 0 and at most 2^30.
-fn parse_mb(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(m) if m.is_finite() && m > 0.0 && m <= f64::from(1u32 << 30) => Ok(m),
-        _ => Err(format!(
-            "`{s}`: expected MiB, a number > 0 and at most 2^30"
-        )),
-    }
-}
-
-/// A share of a frame: a number > 0, or `inf`.
-fn parse_share(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(x) if x > 0.0 => Ok(x),
-        _ => Err(format!(
-            "`{s}`: expected a share of a frame, a number > 0 or `inf`"
-        )),
-    }
-}
-
-/// A finite distance > 0 that fits an f32.
-fn parse_distance(s: &str) -> Result<f32, String> {
-    match s.trim().parse::<f32>() {
-        Ok(d) if d.is_finite() && d > 0.0 => Ok(d),
-        _ => Err(format!("`{s}`: expected a finite distance > 0")),
-    }
-}
-
-/// `WIDTHxHEIGHT`, each 1 ..= 16384.
-pub(crate) fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let bad = || format!("`{s}`: expected WIDTHxHEIGHT, each 1 to 16384, e.g. 1024x768");
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
-    let w: u32 = w.trim().parse().map_err(|_| bad())?;
-    let h: u32 = h.trim().parse().map_err(|_| bad())?;
-    if !(1..=16384).contains(&w) || !(1..=16384).contains(&h) {
-        return Err(bad());
-    }
-    Ok((w, h))
-}
-
-/// `X,Y,Z`, finite numbers.
-pub(crate) fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
-    let bad = || format!("`{s}`: expected three finite numbers X,Y,Z");
-    let parts: Vec<f64> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f64>().map_err(|_| bad()))
-        .collect::<Result<_, _>>()?;
-    match parts[..] {
-        [x, y, z] if parts.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
-        _ => Err(bad()),
-    }
-}
-
-/// A `--lod` for rendering: voxel or rlod.
-pub(crate) fn parse_lod_kind(s: &str) -> Result<LodKind, String> {
-    match s {
-        "voxel" => Ok(LodKind::Voxel),
-        "rlod" => Ok(LodKind::Rlod),
-        _ => Err(format!("`{s}`: expected voxel or rlod")),
-    }
-}
-
-/// Opens `model` stopping on `lod` (None: the file's default).
-pub(crate) fn open_scene(model: &Path, lod: Option<LodKind>) -> Result<Scene, CliError> {
-    let scene = Scene::open(model).map_err(cli_error)?;
-    match lod {
-        Some(l) => scene.with_lod(l).map_err(cli_error),
-        None => Ok(scene),
-    }
-}
-
-pub(crate) fn cli_error(e: TraceError) -> CliError {
-    match e {
-        TraceError::Format(e) => CliError::Format(e),
-        TraceError::Io { path, source } => CliError::Io {
-            path: path.display().to_string(),
-            source,
-        },
-        TraceError::Png { path, source } => CliError::Io {
-            path: path.display().to_string(),
-            source: std::io::Error::other(source.to_string()),
-        },
-        e @ (TraceError::Camera(_)
-        | TraceError::Options(_)
-        | TraceError::Path { .. }
-        | TraceError::LodKind { .. }) => CliError::Usage(e.to_string()),
-    }
-}
-
-/// Half the cores, at least one. With as many fetchers as cores, the bursts of loads of a cold
-/// walkthrough slowed frames to 2.1–2.4× the same frames warm on 2 cores (100M Mandelbulb, PoE
-/// 3, `--cache-mb 512`), against 1.5–1.9× with one fetcher: the async cache never waits on the
-/// disk, but decoding competes with rendering for the cores.
-pub(crate) fn default_fetchers() -> u64 {
-    std::thread::available_parallelism().map_or(1, |n| (n.get() as u64 / 2).max(1))
-}
-
-/// The cache a render uses, kept by kind for what only one kind does.
-pub(crate) enum Cache {
-    Async(AsyncCache),
-    Blocking(BlockingCache),
-    Mmap(MmapCache),
-}
-
-impl Cache {
-    fn open(a: &Args) -> Result<(Arc<Scene>, Cache), CliError> {
-        let scene = if a.cache == "mmap" {
-            None
-        } else {
-            Some(Arc::new(open_scene(&a.model, a.lod)?))
-        };
-        let opts = AsyncOptions {
-            fetchers: usize::try_from(a.fetchers).unwrap_or(1),
-            read_ahead: a.read_ahead,
-            // The value parsers allow only the names.
-            fetch_order: FetchOrder::parse(&a.fetch_order).unwrap_or_default(),
-            eviction: Eviction::parse(&a.eviction).unwrap_or_default(),
-            fetcher_nice: a.fetcher_nice,
-            fetch_share: a.fetch_share,
-            prefetch_bytes: if a.prefetch == "on" {
-                (a.prefetch_mb * 1048576.0) as u64
-            } else {
-                0
-            },
-        };
-        Cache::with_options(
-            &a.model,
-            scene,
-            &a.cache,
-            budget_bytes(a.cache_mb),
-            &opts,
-            a.lod,
-        )
-    }
-
-    /// A cache of `kind` (`async`, `blocking` or `mmap`) over `scene`, or over the container
-    /// at `model` opened anew when there is no scene or the kind is `mmap` (which maps it).
-    pub(crate) fn of_kind(
-        model: &Path,
-        scene: Option<Arc<Scene>>,
-        kind: &str,
-        budget: usize,
-        fetchers: usize,
-        read_ahead: u8,
-        lod: Option<LodKind>,
-    ) -> Result<(Arc<Scene>, Cache), CliError> {
-        let opts = AsyncOptions {
-            fetchers,
-            read_ahead,
-            ..AsyncOptions::default()
-        };
-        Cache::with_options(model, scene, kind, budget, &opts, lod)
-    }
-
-    /// [`Cache::of_kind`] with every option of the async cache.
-    pub(crate) fn with_options(
-        model: &Path,
-        scene: Option<Arc<Scene>>,
-        kind: &str,
-        budget: usize,
-        opts: &AsyncOptions,
-        lod: Option<LodKind>,
-    ) -> Result<(Arc<Scene>, Cache), CliError> {
-        if kind == "mmap" {
-            let c = MmapCache::open_as(model, budget, lod).map_err(cli_error)?;
-            return Ok((Arc::clone(c.scene()), Cache::Mmap(c)));
-        }
-        let scene = match scene {
-            Some(s) => s,
-            None => Arc::new(open_scene(model, lod)?),
-        };
-        let cache = if kind == "blocking" {
-            Cache::Blocking(BlockingCache::new(Arc::clone(&scene), budget))
-        } else {
-            Cache::Async(AsyncCache::with_options(Arc::clone(&scene), budget, opts))
-        };
-        Ok((scene, cache))
-    }
-
-    pub(crate) fn get(&self) -> &dyn BlockCache {
-        match self {
-            Cache::Async(c) => c,
-            Cache::Blocking(c) => c,
-            Cache::Mmap(c) => c,
-        }
-    }
-}
-
-/// One frame's figures: the blocks requested, loaded and evicted are those of the step after
-/// the frame.
-#[derive(Serialize)]
-struct FrameFigures {
-    frame: usize,
-    file: String,
-    /// The frame's rays.
-    ms: f64,
-    /// The cache's step after the frame (publishing, ranking, evicting): part of the time
-    /// between two frames, apart from `ms`.
-    step_ms: f64,
-    rays_per_second: f64,
-    primary: Endings,
-    /// Primary rays that ended on a voxel, an R-LOD or a proxy: coarser than full detail.
-    coarse_pixels: u64,
-    blocks_requested: u64,
-    blocks_loaded: u64,
-    blocks_evicted: u64,
-    blocks_pending: u64,
-    working_set_mb: f64,
-    /// Of this frame's block lookups, the share that found the block resident.
-    hit_rate: f64,
-    /// Distinct blocks the frame wanted and did not find resident (its misses).
-    blocks_missed: u64,
-    /// Look-ahead prefetching after the step: predicting and probing the next cameras and
-    /// queueing what they want (0 without --prefetch).
-    prefetch_ms: f64,
-    /// Of `blocks_loaded`, the ones prefetched; and prefetched blocks (loaded by any step)
-    /// that this frame used for the first time.
-    blocks_prefetched: u64,
-    blocks_prefetch_used: u64,
-    /// The fetchers' CPU time reading and decoding blocks between the step before this frame
-    /// and the one after it (asynchronous cache).
-    fetch_cpu_ms: f64,
-    /// With --accuracy: the share of pixels equal to the full-detail reference.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    accuracy: Option<Accuracy>,
-    missing_blocks: usize,
-    /// The cores the render threads are bound to with --pin, in the pool's order; empty when
-    /// the system places them.
-    pinned_cores: Vec<usize>,
-    stats: FrameStats,
-}
-
-/// A still image's figures: the frame's, and where its render threads ran.
-#[derive(Serialize)]
-struct StillFigures<'a> {
-    #[serde(flatten)]
-    stats: &'a FrameStats,
-    /// As in [`FrameFigures`].
-    pinned_cores: &'a [usize],
-}
-
-impl FrameFigures {
-    fn new(
-        frame: usize,
-        file: &Path,
-        (stats, step_ms): (FrameStats, f64),
-        before: &CacheStats,
-    ) -> FrameFigures {
-        let c = &stats.cache;
-        let lookups = c.lookups.saturating_sub(before.lookups);
-        let hits = c.hits.saturating_sub(before.hits);
-        FrameFigures {
-            frame,
-            file: file.display().to_string(),
-            ms: stats.ms,
-            step_ms,
-            rays_per_second: stats.rays_per_second,
-            primary: stats.primary,
-            coarse_pixels: stats.primary.voxel + stats.primary.rlod + stats.primary.proxy,
-            blocks_requested: c.blocks_requested.saturating_sub(before.blocks_requested),
-            blocks_loaded: c.blocks_loaded.saturating_sub(before.blocks_loaded),
-            blocks_evicted: c.blocks_evicted.saturating_sub(before.blocks_evicted),
-            blocks_pending: c.blocks_pending,
-            working_set_mb: c.bytes_resident as f64 / 1048576.0,
-            hit_rate: if lookups > 0 {
-                hits as f64 / lookups as f64
-            } else {
-                1.0
-            },
-            blocks_missed: c.blocks_wanted_last_frame,
-            prefetch_ms: 0.0,
-            blocks_prefetched: c.blocks_prefetched.saturating_sub(before.blocks_prefetched),
-            blocks_prefetch_used: c
-                .blocks_prefetch_used
-                .saturating_sub(before.blocks_prefetch_used),
-            fetch_cpu_ms: (c.fetch_cpu_ms - before.fetch_cpu_ms).max(0.0),
-            accuracy: None,
-            missing_blocks: c.missing_blocks.len(),
-            pinned_cores: Vec::new(),
-            stats,
-        }
-    }
-}
-
-/// Renders one frame and runs the cache's step after it; the stats carry the cache's figures
-/// after the step.
-pub(crate) fn frame(
-    scene: &Scene,
-    cache: &dyn BlockCache,
-    camera: &Camera,
-    opts: &RenderOptions,
-) -> Result<(Image, FrameStats), CliError> {
-    frame_and_step(scene, cache, camera, opts).map(|(image, stats, _)| (image, stats))
-}
-
-/// [`frame`], and the milliseconds of the cache's step.
-fn frame_and_step(
-    scene: &Scene,
-    cache: &dyn BlockCache,
-    camera: &Camera,
-    opts: &RenderOptions,
-) -> Result<(Image, FrameStats, f64), CliError> {
-    let (image, mut stats) = render(scene, cache, camera, opts).map_err(cli_error)?;
-    let step = std::time::Instant::now();
-    cache.end_frame();
-    let step_ms = step.elapsed().as_secs_f64() * 1e3;
-    stats.cache = cache.stats();
-    Ok((image, stats, step_ms))
-}
-
-/// Renders a still view until a frame finds every block it wants: with the async cache,
-/// letting the fetchers finish between frames (at most [`MAX_SETTLE_FRAMES`], warning when
-/// that was not enough); with the others, one frame. Returns the last frame and the number of
-/// frames rendered.
-pub(crate) fn settle(
-    scene: &Scene,
-    cache: &Cache,
-    camera: &Camera,
-    opts: &RenderOptions,
-) -> Result<((Image, FrameStats), u32), CliError> {
-    let c = cache.get();
-    let mut result = frame(scene, c, camera, opts)?;
-    let mut settle_frames = 1;
-    if let Cache::Async(ac) = cache {
-        while result.1.cache.blocks_wanted_last_frame > 0 && settle_frames < MAX_SETTLE_FRAMES {
-            ac.wait_for_fetchers();
-            c.end_frame();
-            result = frame(scene, c, camera, opts)?;
-            settle_frames += 1;
-        }
-        if result.1.cache.blocks_wanted_last_frame > 0 {
-            eprintln!(
-                "oocfmt: warning: after {settle_frames} frames the view still wants blocks \
-                 (is --cache-mb too small for it?); the image is coarser where they are missing"
-            );
-        }
-    }
-    Ok((result, settle_frames))
-}
-
-/// The most frames a still image in async mode takes to load what it wants.
-const MAX_SETTLE_FRAMES: u32 = 1000;
-
-pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), CliError> {
-    let json = to_json(value)?;
-    std::fs::write(path, json + "\n").map_err(|source| CliError::Io {
-        path: path.display().to_string(),
-        source,
-    })
-}
-
-/// `--cache-mb` in bytes.
-fn budget_bytes(mb: u64) -> usize {
-    usize::try_from(mb << 20).unwrap_or(usize::MAX)
-}
-
-/// Sets the render threads (`--threads`; None: all cores).
-pub(crate) fn use_threads(threads: Option<usize>) -> Result<(), CliError> {
-    if let Some(n) = threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build_global()
-            .map_err(|e| CliError::Usage(format!("--threads {n}: {e}")))?;
-    }
-    Ok(())
-}
-
-/// Binds each render thread to a core of its own when there are as many as the cores the
-/// process may use (`--pin`), and returns their cores in the pool's order; otherwise says why
-/// not. With fewer threads, a core is left free for the fetchers and the system, and binding
-/// would only tie the render threads down.
-fn pin_threads() -> Result<Vec<usize>, String> {
-    let threads = rayon::current_num_threads();
-    let Some(cores) = affinity::usable_cores() else {
-        return Err("the system does not say which cores the process may use".into());
-    };
-    if threads < 2 {
-        return Err("one render thread shares its core with no other".into());
-    }
-    if cores.len() != threads {
-        return Err(format!(
-            "{threads} render threads on {} usable cores: they are bound only when as many",
-            cores.len()
-        ));
-    }
-    let bound = affinity::bind_pool(&cores);
-    if bound.is_empty() {
-        return Err("the system refused".into());
-    }
-    Ok(bound)
-}
-
-/// Cameras in world coordinates (a walkthrough's) moved into the scene's stored coordinates.
-pub(crate) fn stored_cameras(scene: &Scene, cameras: Vec<Camera>) -> Vec<Camera> {
-    let origin = scene.metadata().scene.origin;
-    let stored = |p: [f64; 3]| [0, 1, 2].map(|k| p[k] - origin[k]);
-    cameras
-        .into_iter()
-        .map(|c| Camera {
-            eye: stored(c.eye),
-            look_at: stored(c.look_at),
-            ..c
-        })
-        .collect()
-}
-
-/// The view flags `render` and `curve` share.
-#[derive(clap::Args, Clone, Copy)]
-pub struct View {
-    /// Image size, WIDTHxHEIGHT
-    #[arg(long, default_value = "1024x768", value_parser = parse_size)]
-    pub size: (u32, u32),
-    /// Eye position X,Y,Z in world coordinates (default: framing the whole model)
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub eye: Option<[f64; 3]>,
-    /// The point looked at, X,Y,Z in world coordinates (default: the model's centre)
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub look_at: Option<[f64; 3]>,
-    /// Up direction X,Y,Z
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub up: Option<[f64; 3]>,
-    /// Vertical field of view in degrees
-    #[arg(long, default_value_t = oocfmt_trace::camera::DEFAULT_FOV_Y)]
-    pub fov_y: f64,
-}
-
-/// The camera of a still view in stored coordinates: framing the whole model, with the eye,
-/// look-at point (world coordinates) and up direction given on the command line.
-pub(crate) fn still_camera(scene: &Scene, v: &View) -> Camera {
-    let View {
-        size: (w, h),
-        eye,
-        look_at,
-        up,
-        fov_y,
-    } = *v;
-    let m = scene.metadata();
-    let origin = m.scene.origin;
-    let stored = |p: [f64; 3]| [0, 1, 2].map(|k| p[k] - origin[k]);
-    let mut camera = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, w, h);
-    if let Some(e) = eye {
-        camera.eye = stored(e);
-    }
-    if let Some(l) = look_at {
-        camera.look_at = stored(l);
-    }
-    if let Some(u) = up {
-        camera.up = u;
-    }
-    camera.fov_y = fov_y;
-    camera
 }
 
 pub fn run(a: &Args) -> CliResult {
@@ -623,52 +172,108 @@ pub fn run(a: &Args) -> CliResult {
     let (w, h) = a.view.size;
     // Read the path before the model: a bad path file is reported without loading anything.
     let path_cameras = match &a.path {
-        Some(p) => Some(walk::read_path(p, w, h).map_err(cli_error)?),
+        Some(p) => Some(walk::read_path(p, w, h)?),
         None => None,
     };
-    if a.prefetch == "on" && (a.cache != "async" || a.path.is_none()) {
+    if a.prefetch.is_on() && (a.cache != CacheArg::Async || a.path.is_none()) {
         return Err(CliError::Usage(
             "--prefetch on predicts the cameras of a walkthrough: it needs --path and --cache \
              async"
                 .into(),
         ));
     }
-    let (scene, cache) = Cache::open(a)?;
-    let origin = scene.metadata().scene.origin;
-    let stored = |p: [f64; 3]| [0, 1, 2].map(|k| p[k] - origin[k]);
+    let (scene, cache) = open_cache(a)?;
     let opts = RenderOptions {
         poe: a.poe,
         spp: a.spp,
         shadows: a.shadows,
-        light: a.light.map(stored),
+        light: a.light.map(|l| session::stored_point(&scene, l)),
         ao: a.ao.unwrap_or(0),
         ao_distance: a.ao_distance,
         ..RenderOptions::default()
     };
-    if let Some(cameras) = path_cameras {
-        let cameras = stored_cameras(&scene, cameras);
-        return walkthrough(a, &scene, &cache, &cameras, &opts, &pinned_cores);
+    match path_cameras {
+        Some(cameras) => {
+            let cameras = session::stored_cameras(&scene, cameras);
+            walkthrough(a, &scene, &cache, &cameras, opts, &pinned_cores)
+        }
+        None => still(a, &scene, &cache, &opts, &pinned_cores),
     }
-    let camera = still_camera(&scene, &a.view);
-    let c = cache.get();
-    let (mut result, settle_frames) = settle(&scene, &cache, &camera, &opts)?;
+}
+
+/// The scene and the cache `--cache` asks for, with the async cache's flags.
+fn open_cache(a: &Args) -> Result<(Arc<Scene>, Cache), CliError> {
+    let kind = CacheKind::from(a.cache);
+    let lod = a.lod.map(Into::into);
+    let scene = if kind == CacheKind::Mmap {
+        None
+    } else {
+        Some(Arc::new(session::open_scene(&a.model, lod)?))
+    };
+    let opts = AsyncOptions {
+        fetchers: usize::try_from(a.fetchers).unwrap_or(1),
+        read_ahead: a.read_ahead,
+        fetch_order: a.fetch_order.into(),
+        eviction: a.eviction.into(),
+        fetcher_nice: a.fetcher_nice,
+        fetch_share: a.fetch_share,
+        prefetch_bytes: if a.prefetch.is_on() {
+            (a.prefetch_mb * 1048576.0) as u64
+        } else {
+            0
+        },
+    };
+    Ok(Cache::open(
+        &a.model,
+        scene,
+        kind,
+        budget_bytes(a.cache_mb),
+        &opts,
+        lod,
+    )?)
+}
+
+/// A still view: rendered until it has what it wants, then `--repeat` more times.
+fn still(
+    a: &Args,
+    scene: &Scene,
+    cache: &Cache,
+    opts: &RenderOptions,
+    pinned_cores: &[usize],
+) -> CliResult {
+    let camera = a.view.camera(scene);
+    let settled = settle(scene, cache, &camera, opts)?;
+    let mut last = settled.frame;
     for _ in 1..a.repeat {
-        result = frame(&scene, c, &camera, &opts)?;
+        last = session::frame(scene, cache.get(), &camera, opts)?;
     }
-    let (image, stats) = result;
-    write_png(&a.output, image.width, image.height, &image.rgb).map_err(cli_error)?;
+    let (image, stats) = (last.image, last.stats);
+    write_png(&a.output, image.width, image.height, &image.rgb)?;
     if let Some(d) = &a.depth_out {
-        write_pfm(d, image.width, image.height, &image.depth).map_err(cli_error)?;
+        write_pfm(d, image.width, image.height, &image.depth)?;
     }
     if let Some(s) = &a.stats_json {
         write_json(
             s,
             &StillFigures {
                 stats: &stats,
-                pinned_cores: &pinned_cores,
+                pinned_cores,
             },
         )?;
     }
+    print_still(a, &image, &stats, settled.frames, !pinned_cores.is_empty())?;
+    warn_missing(&stats.cache.missing_blocks);
+    Ok(0)
+}
+
+/// The lines `render` prints for a still view.
+fn print_still(
+    a: &Args,
+    image: &Image,
+    stats: &FrameStats,
+    settle_frames: u32,
+    pinned: bool,
+) -> Result<(), CliError> {
     let p = &stats.primary;
     outln!(
         "wrote {} ({}x{}, --poe {}): {:.1} ms, {:.2} Mrays/s on {} threads{}",
@@ -679,11 +284,7 @@ pub fn run(a: &Args) -> CliResult {
         stats.ms,
         stats.rays_per_second / 1e6,
         stats.threads,
-        if pinned_cores.is_empty() {
-            ""
-        } else {
-            ", one per core"
-        }
+        if pinned { ", one per core" } else { "" }
     )?;
     if settle_frames > 1 {
         outln!("async cache: {settle_frames} frames to load the view's blocks")?;
@@ -713,130 +314,221 @@ pub fn run(a: &Args) -> CliResult {
         c.bytes_resident as f64 / 1048576.0,
         c.peak_bytes_resident as f64 / 1048576.0,
         a.cache_mb
-    )?;
-    for b in &c.missing_blocks {
-        eprintln!("oocfmt: warning: block {} is missing: {}", b.id, b.error);
-    }
-    Ok(0)
+    )
 }
 
-/// Renders `cameras` in order with one cache, writing numbered PNGs and a line of figures per
-/// frame; with --prefetch, looks ahead after each frame; with --accuracy, compares every frame
-/// with its full-detail reference at the end.
+/// Renders `cameras` in order with one cache ([`Walkthrough`]), writing numbered PNGs and a
+/// line of figures per frame; with --accuracy, compares every frame with its full-detail
+/// reference at the end.
 fn walkthrough(
     a: &Args,
     scene: &Arc<Scene>,
     cache: &Cache,
     cameras: &[Camera],
-    opts: &RenderOptions,
+    opts: RenderOptions,
     pinned_cores: &[usize],
 ) -> CliResult {
-    let c = cache.get();
-    let mut look_ahead = match cache {
-        Cache::Async(ac) if a.prefetch == "on" => {
-            Some((ac, LookAhead::new(a.prefetch_frames, DEFAULT_PROBE_ROWS)))
-        }
-        _ => None,
-    };
-    let mut all = Vec::with_capacity(cameras.len());
+    let prefetch = a.prefetch.is_on().then_some(a.prefetch_frames);
+    let mut walk = Walkthrough::new(scene, cache, opts, prefetch)?;
+    let mut records = Vec::with_capacity(cameras.len());
     let mut files = Vec::with_capacity(cameras.len());
-    let mut before = c.stats();
-    let mut reported_missing = 0;
-    for (i, camera) in cameras.iter().enumerate() {
-        let (image, stats, step_ms) = frame_and_step(scene, c, camera, opts)?;
-        let prefetch_ms = match &mut look_ahead {
-            Some((ac, la)) => {
-                let start = std::time::Instant::now();
-                la.after_frame(scene, ac, camera, opts.poe);
-                start.elapsed().as_secs_f64() * 1e3
-            }
-            None => 0.0,
-        };
-        // Writing the frame's files renders nothing: the fetchers may use that time freely.
-        if let Cache::Async(ac) = cache {
-            ac.idle();
-        }
-        let file = walk::frame_file(&a.output, i);
-        write_png(&file, image.width, image.height, &image.rgb).map_err(cli_error)?;
+    for camera in cameras {
+        let f = walk.frame(camera)?;
+        let file = walk::frame_file(&a.output, f.index);
+        write_png(&file, f.image.width, f.image.height, &f.image.rgb)?;
         if let Some(d) = &a.depth_out {
-            let dfile = walk::frame_file(d, i);
-            write_pfm(&dfile, image.width, image.height, &image.depth).map_err(cli_error)?;
+            let dfile = walk::frame_file(d, f.index);
+            write_pfm(&dfile, f.image.width, f.image.height, &f.image.depth)?;
         }
-        for b in stats.cache.missing_blocks.iter().skip(reported_missing) {
-            eprintln!("oocfmt: warning: block {} is missing: {}", b.id, b.error);
-        }
-        reported_missing = stats.cache.missing_blocks.len();
-        let next = stats.cache.clone();
-        let mut f = FrameFigures::new(i, &file, (stats, step_ms), &before);
-        f.prefetch_ms = prefetch_ms;
-        f.pinned_cores = pinned_cores.to_vec();
-        before = next;
-        let p = &f.primary;
-        let prefetched = if look_ahead.is_some() {
-            format!(
-                " ({} prefetched, +{:.1} ms look-ahead)",
-                f.blocks_prefetched, f.prefetch_ms
-            )
-        } else {
-            String::new()
-        };
-        outln!("frame {i:4}: {:8.1} ms (+{:.1} ms step) {:7.2} Mrays/s | tri {} voxel {} proxy {} miss {} | blocks \
-             +{} requested +{} loaded{prefetched} +{} evicted {} pending {} missed | {:.1} MiB | hit {:.1}% | {}",
-            f.ms,
-            f.step_ms,
-            f.rays_per_second / 1e6,
-            p.triangle,
-            p.voxel,
-            p.proxy,
-            p.miss,
-            f.blocks_requested,
-            f.blocks_loaded,
-            f.blocks_evicted,
-            f.blocks_pending,
-            f.blocks_missed,
-            f.working_set_mb,
-            100.0 * f.hit_rate,
-            file.display()
-        )?;
-        all.push(f);
+        warn_missing(&f.new_missing);
+        let record = FrameRecord::new(f, &file, pinned_cores);
+        print_frame(&record, walk.prefetching())?;
+        records.push(record);
         files.push(file);
     }
     if a.accuracy {
-        let tolerance = a.accuracy_tolerance;
-        let measured = accuracy::measure(
-            scene,
-            cameras,
-            &files,
-            opts,
-            budget_bytes(a.cache_mb),
-            tolerance,
-        )?;
-        for (f, m) in all.iter_mut().zip(measured) {
-            outln!(
-                "accuracy {:4}: {:6.2} % of pixels equal to the full-detail reference, {:6.2} % \
-                 within {tolerance}",
-                f.frame,
-                100.0 * m.exact,
-                100.0 * m.within_tolerance
-            )?;
-            f.accuracy = Some(m);
-        }
-        let mut exact: Vec<f64> = all
-            .iter()
-            .filter_map(|f| f.accuracy)
-            .map(|m| m.exact)
-            .collect();
-        exact.sort_by(f64::total_cmp);
-        if let Some(min) = exact.first() {
-            outln!(
-                "accuracy: median {:.2} %, minimum {:.2} % of pixels equal to the reference",
-                100.0 * median_sorted(&exact),
-                100.0 * min
-            )?;
-        }
+        report_accuracy(a, scene, cameras, &files, &opts, &mut records)?;
     }
     if let Some(s) = &a.stats_json {
-        write_json(s, &all)?;
+        write_json(s, &records)?;
     }
     Ok(0)
+}
+
+/// A walkthrough frame's line of figures.
+fn print_frame(r: &FrameRecord, prefetching: bool) -> Result<(), CliError> {
+    let f = &r.figures;
+    let p = &f.primary;
+    let prefetched = if prefetching {
+        format!(
+            " ({} prefetched, +{:.1} ms look-ahead)",
+            f.blocks_prefetched, f.prefetch_ms
+        )
+    } else {
+        String::new()
+    };
+    outln!("frame {:4}: {:8.1} ms (+{:.1} ms step) {:7.2} Mrays/s | tri {} voxel {} proxy {} miss {} | blocks \
+         +{} requested +{} loaded{prefetched} +{} evicted {} pending {} missed | {:.1} MiB | hit {:.1}% | {}",
+        r.frame,
+        f.ms,
+        f.step_ms,
+        f.rays_per_second / 1e6,
+        p.triangle,
+        p.voxel,
+        p.proxy,
+        p.miss,
+        f.blocks_requested,
+        f.blocks_loaded,
+        f.blocks_evicted,
+        f.blocks_pending,
+        f.blocks_missed,
+        f.working_set_mb,
+        100.0 * f.hit_rate,
+        r.file
+    )
+}
+
+/// `--accuracy`: each frame against its full-detail reference, a line per frame and the
+/// median and minimum; the figures go into `records`.
+fn report_accuracy(
+    a: &Args,
+    scene: &Arc<Scene>,
+    cameras: &[Camera],
+    files: &[PathBuf],
+    opts: &RenderOptions,
+    records: &mut [FrameRecord],
+) -> Result<(), CliError> {
+    let tolerance = a.accuracy_tolerance;
+    let measured = accuracy::measure(
+        scene,
+        cameras,
+        files,
+        opts,
+        budget_bytes(a.cache_mb),
+        tolerance,
+    )?;
+    for (f, m) in records.iter_mut().zip(measured) {
+        outln!(
+            "accuracy {:4}: {:6.2} % of pixels equal to the full-detail reference, {:6.2} % \
+             within {tolerance}",
+            f.frame,
+            100.0 * m.exact,
+            100.0 * m.within_tolerance
+        )?;
+        f.accuracy = Some(m);
+    }
+    let mut exact: Vec<f64> = records
+        .iter()
+        .filter_map(|f| f.accuracy)
+        .map(|m| m.exact)
+        .collect();
+    exact.sort_by(f64::total_cmp);
+    if let Some(min) = exact.first() {
+        outln!(
+            "accuracy: median {:.2} %, minimum {:.2} % of pixels equal to the reference",
+            100.0 * median_sorted(&exact),
+            100.0 * min
+        )?;
+    }
+    Ok(())
+}
+
+/// One walkthrough frame in `--stats-json`: where it was written, the session's figures, and
+/// what the CLI adds.
+#[derive(Serialize)]
+struct FrameRecord {
+    frame: usize,
+    file: String,
+    #[serde(flatten)]
+    figures: FrameFigures,
+    /// With --accuracy: the share of pixels equal to the full-detail reference.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    accuracy: Option<Accuracy>,
+    missing_blocks: usize,
+    /// The cores the render threads are bound to with --pin, in the pool's order; empty when
+    /// the system places them.
+    pinned_cores: Vec<usize>,
+    stats: FrameStats,
+}
+
+impl FrameRecord {
+    fn new(f: WalkFrame, file: &Path, pinned_cores: &[usize]) -> FrameRecord {
+        FrameRecord {
+            frame: f.index,
+            file: file.display().to_string(),
+            figures: f.figures,
+            accuracy: None,
+            missing_blocks: f.stats.cache.missing_blocks.len(),
+            pinned_cores: pinned_cores.to_vec(),
+            stats: f.stats,
+        }
+    }
+}
+
+/// A still image's figures: the frame's, and where its render threads ran.
+#[derive(Serialize)]
+struct StillFigures<'a> {
+    #[serde(flatten)]
+    stats: &'a FrameStats,
+    /// As in [`FrameRecord`].
+    pinned_cores: &'a [usize],
+}
+
+/// Warns about blocks that could not be read; the frames are coarser where they are needed.
+pub(crate) fn warn_missing(blocks: &[MissingBlock]) {
+    for b in blocks {
+        eprintln!("oocfmt: warning: block {} is missing: {}", b.id, b.error);
+    }
+}
+
+/// [`session::settle`], warning when the view still wants blocks after the most frames it
+/// may take.
+pub(crate) fn settle(
+    scene: &Scene,
+    cache: &Cache,
+    camera: &Camera,
+    opts: &RenderOptions,
+) -> Result<Settled, CliError> {
+    let settled = session::settle(scene, cache, camera, opts)?;
+    if !settled.complete {
+        eprintln!(
+            "oocfmt: warning: after {} frames the view still wants blocks \
+             (is --cache-mb too small for it?); the image is coarser where they are missing",
+            settled.frames
+        );
+    }
+    Ok(settled)
+}
+
+pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), CliError> {
+    let json = to_json(value)?;
+    std::fs::write(path, json + "\n").map_err(|source| CliError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+/// Binds each render thread to a core of its own when there are as many as the cores the
+/// process may use (`--pin`), and returns their cores in the pool's order; otherwise says why
+/// not. With fewer threads, a core is left free for the fetchers and the system, and binding
+/// would only tie the render threads down.
+fn pin_threads() -> Result<Vec<usize>, String> {
+    let threads = rayon::current_num_threads();
+    let Some(cores) = affinity::usable_cores() else {
+        return Err("the system does not say which cores the process may use".into());
+    };
+    if threads < 2 {
+        return Err("one render thread shares its core with no other".into());
+    }
+    if cores.len() != threads {
+        return Err(format!(
+            "{threads} render threads on {} usable cores: they are bound only when as many",
+            cores.len()
+        ));
+    }
+    let bound = affinity::bind_pool(&cores);
+    if bound.is_empty() {
+        return Err("the system refused".into());
+    }
+    Ok(bound)
 }

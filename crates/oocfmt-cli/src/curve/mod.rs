@@ -14,16 +14,16 @@ use std::sync::Arc;
 use serde::Serialize;
 
 use oocfmt_trace::blocks::LodKind;
+use oocfmt_trace::cache::asynchronous::AsyncOptions;
 use oocfmt_trace::compare::{Accumulator, ImageError};
 use oocfmt_trace::render::Endings;
+use oocfmt_trace::session::{self, frame, Cache, CacheKind};
 use oocfmt_trace::{BlockingCache, Camera, Image, RenderOptions, Scene};
 
+use crate::args::{self, budget_bytes, use_threads, CacheArg, LodArg, View};
 use crate::error::{CliError, CliResult};
 use crate::out::outln;
-use crate::render::{
-    cli_error, frame, open_scene, settle, still_camera, stored_cameras, use_threads, write_json,
-    Cache, View,
-};
+use crate::render::{settle, warn_missing, write_json};
 use touched::Touched;
 
 /// The JSON schema of `--json`.
@@ -38,12 +38,12 @@ pub struct Args {
     pub poe: PoeList,
     /// Caches to measure, comma-separated (one series each): async, blocking, mmap (mmap
     /// needs a container converted with `--codec none`)
-    #[arg(long, default_value = "async", value_delimiter = ',', value_parser = ["async", "blocking", "mmap"])]
-    pub cache: Vec<String>,
+    #[arg(long, value_enum, default_value = "async", value_delimiter = ',')]
+    pub cache: Vec<CacheArg>,
     /// LOD representations to compare, comma-separated (one series each with every cache):
     /// voxel, rlod; each must be in the file (`convert --lod both` holds both)
-    #[arg(long, default_value = "voxel", value_delimiter = ',', value_parser = crate::render::parse_lod_kind)]
-    pub lod: Vec<LodKind>,
+    #[arg(long, value_enum, default_value = "voxel", value_delimiter = ',')]
+    pub lod: Vec<LodArg>,
     #[command(flatten)]
     pub view: View,
     /// A walkthrough (as for `render --path`) instead of one view: every figure is over all
@@ -63,7 +63,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
     pub cache_mb: u64,
     /// Fetcher threads of the async cache (default: half the cores, at least one)
-    #[arg(long, default_value_t = crate::render::default_fetchers(), value_parser = clap::value_parser!(u64).range(1..=64))]
+    #[arg(long, default_value_t = args::default_fetchers(), value_parser = clap::value_parser!(u64).range(1..=64))]
     pub fetchers: u64,
     /// Async cache: block levels read ahead (as for `render`)
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_READ_AHEAD, value_parser = clap::value_parser!(u8).range(0..=16))]
@@ -179,33 +179,21 @@ pub struct Shot {
 
 pub fn run(a: &Args) -> CliResult {
     use_threads(a.threads)?;
-    let mut kinds: Vec<&str> = Vec::new();
-    for k in &a.cache {
-        if kinds.contains(&k.as_str()) {
-            return Err(CliError::Usage(format!("--cache: `{k}` is listed twice")));
-        }
-        kinds.push(k);
-    }
+    let kinds = listed_once("--cache", &a.cache, |k| CacheKind::from(k).name())?;
     let (w, h) = a.view.size;
     let path_cameras = match &a.path {
-        Some(p) => Some(oocfmt_trace::walk::read_path(p, w, h).map_err(cli_error)?),
+        Some(p) => Some(oocfmt_trace::walk::read_path(p, w, h)?),
         None => None,
     };
-    let mut lods: Vec<LodKind> = Vec::new();
-    for &l in &a.lod {
-        if lods.contains(&l) {
-            return Err(CliError::Usage(format!(
-                "--lod: `{}` is listed twice",
-                l.name()
-            )));
-        }
-        lods.push(l);
-    }
+    let lods = listed_once("--lod", &a.lod, |l| LodKind::from(l).name())?;
     // Every kind is checked before anything is rendered. The reference does not depend on the
     // kind: PoE 0 never stops on a LOD node.
     let scenes = lods
         .iter()
-        .map(|&l| Ok((l, Arc::new(open_scene(&a.model, Some(l))?))))
+        .map(|&l| {
+            let l = LodKind::from(l);
+            Ok((l, Arc::new(session::open_scene(&a.model, Some(l))?)))
+        })
         .collect::<Result<Vec<_>, CliError>>()?;
     let Some((_, scene)) = scenes.first() else {
         return Err(CliError::Usage(
@@ -214,31 +202,22 @@ pub fn run(a: &Args) -> CliResult {
     };
     let scene = Arc::clone(scene);
     let cameras = match path_cameras {
-        Some(c) => stored_cameras(&scene, c),
-        None => vec![still_camera(&scene, &a.view)],
+        Some(c) => session::stored_cameras(&scene, c),
+        None => vec![a.view.camera(&scene)],
     };
-    let budget = usize::try_from(a.cache_mb << 20).unwrap_or(usize::MAX);
-    let fetchers = usize::try_from(a.fetchers).unwrap_or(1);
-    if kinds.contains(&"mmap") {
+    if kinds.contains(&CacheArg::Mmap) {
         // A container mmap cannot map is refused before any rendering.
-        Cache::of_kind(&a.model, None, "mmap", budget, fetchers, a.read_ahead, None)?;
+        open_cache(a, None, CacheKind::Mmap, None)?;
     }
     let (references, reference) = render_reference(&scene, &cameras)?;
     let mut rows = Vec::new();
     let mut shots = Vec::new();
     for (lod, lod_scene) in &scenes {
-        for kind in &kinds {
+        for &kind in &kinds {
             for &poe in &a.poe.0 {
                 // A fresh cache per measurement, so each working set is the PoE's own.
-                let (scene, cache) = Cache::of_kind(
-                    &a.model,
-                    Some(Arc::clone(lod_scene)),
-                    kind,
-                    budget,
-                    fetchers,
-                    a.read_ahead,
-                    Some(*lod),
-                )?;
+                let kind = CacheKind::from(kind);
+                let (scene, cache) = open_cache(a, Some(Arc::clone(lod_scene)), kind, Some(*lod))?;
                 let (row, image) =
                     measure(a, &scene, &cache, (kind, *lod), poe, &cameras, &references)?;
                 shots.push(Shot {
@@ -257,30 +236,81 @@ pub fn run(a: &Args) -> CliResult {
         }
     }
     print_table(a, &cameras, &reference, &rows)?;
+    let curve = Curve {
+        schema: SCHEMA,
+        model: a.model.display().to_string(),
+        width: w,
+        height: h,
+        frames: cameras.len(),
+        repeat: a.repeat,
+        threads: rayon::current_num_threads(),
+        cache_mb: a.cache_mb,
+        reference,
+        rows: &rows,
+    };
+    write_files(a, &curve, references.first(), &shots)?;
+    Ok(0)
+}
+
+/// The items of a comma-separated list flag, refused when one is listed twice.
+fn listed_once<T: Copy + PartialEq>(
+    flag: &str,
+    items: &[T],
+    name: impl Fn(T) -> &'static str,
+) -> Result<Vec<T>, CliError> {
+    let mut once: Vec<T> = Vec::with_capacity(items.len());
+    for &item in items {
+        if once.contains(&item) {
+            return Err(CliError::Usage(format!(
+                "{flag}: `{}` is listed twice",
+                name(item)
+            )));
+        }
+        once.push(item);
+    }
+    Ok(once)
+}
+
+/// A cache of `kind` with the flags' budget and async options, over `scene` (or the container
+/// opened anew).
+fn open_cache(
+    a: &Args,
+    scene: Option<Arc<Scene>>,
+    kind: CacheKind,
+    lod: Option<LodKind>,
+) -> Result<(Arc<Scene>, Cache), CliError> {
+    let opts = AsyncOptions {
+        fetchers: usize::try_from(a.fetchers).unwrap_or(1),
+        read_ahead: a.read_ahead,
+        ..AsyncOptions::default()
+    };
+    Ok(Cache::open(
+        &a.model,
+        scene,
+        kind,
+        budget_bytes(a.cache_mb),
+        &opts,
+        lod,
+    )?)
+}
+
+/// `--json`, `--plot` and `--sheet`.
+fn write_files(
+    a: &Args,
+    curve: &Curve<'_>,
+    reference: Option<&Image>,
+    shots: &[Shot],
+) -> Result<(), CliError> {
     if let Some(p) = &a.json {
-        let curve = Curve {
-            schema: SCHEMA,
-            model: a.model.display().to_string(),
-            width: w,
-            height: h,
-            frames: cameras.len(),
-            repeat: a.repeat,
-            threads: rayon::current_num_threads(),
-            cache_mb: a.cache_mb,
-            reference,
-            rows: &rows,
-        };
-        write_json(p, &curve)?;
+        write_json(p, curve)?;
     }
     if let Some(p) = &a.plot {
-        plot::write(p, &a.model, &rows)?;
+        plot::write(p, &a.model, curve.rows)?;
     }
-    if let Some(p) = &a.sheet {
-        if let Some(r) = references.first() {
-            sheet::write(p, r, &shots)?;
-        }
+    if let (Some(p), Some(r)) = (&a.sheet, reference) {
+        sheet::write(p, r, shots)?;
     }
-    Ok(0)
+    Ok(())
 }
 
 /// The full-detail images of `cameras`: PoE 0 with a blocking cache that keeps every block.
@@ -298,7 +328,7 @@ fn render_reference(
         primary: Endings::default(),
     };
     for camera in cameras {
-        let (image, stats) = frame(scene, &cache, camera, &opts)?;
+        let session::Frame { image, stats, .. } = frame(scene, &cache, camera, &opts)?;
         add_endings(&mut reference.primary, &stats.primary);
         reference.ms += stats.ms;
         images.push(image);
@@ -320,7 +350,7 @@ fn measure(
     a: &Args,
     scene: &Scene,
     cache: &Cache,
-    (kind, lod): (&str, LodKind),
+    (kind, lod): (CacheKind, LodKind),
     poe: f32,
     cameras: &[Camera],
     references: &[Image],
@@ -331,7 +361,7 @@ fn measure(
     };
     let mut settle_frames = 0;
     for camera in cameras {
-        settle_frames += settle(scene, cache, camera, &opts)?.1;
+        settle_frames += settle(scene, cache, camera, &opts)?.frames;
     }
     let touched = Touched::new(cache.get());
     for camera in cameras {
@@ -346,7 +376,7 @@ fn measure(
         let (mut ms, mut images) = (0.0, Vec::with_capacity(cameras.len()));
         (rays, nodes, primary) = (0, 0, Endings::default());
         for camera in cameras {
-            let (image, stats) = frame(scene, cache.get(), camera, &opts)?;
+            let session::Frame { image, stats, .. } = frame(scene, cache.get(), camera, &opts)?;
             ms += stats.ms;
             rays += stats.rays;
             nodes += stats.nodes_visited;
@@ -357,18 +387,16 @@ fn measure(
         pass_ms.push(ms);
         last = images;
     }
-    for b in &cache.get().stats().missing_blocks {
-        eprintln!("oocfmt: warning: block {} is missing: {}", b.id, b.error);
-    }
+    warn_missing(&cache.get().stats().missing_blocks);
     let mut acc = Accumulator::new(a.tolerance);
     for (r, t) in references.iter().zip(&last) {
-        acc.add(r, t).map_err(|e| CliError::Usage(e.to_string()))?;
+        acc.add(r, t)?;
     }
     pass_ms.sort_by(f64::total_cmp);
     let median_pass = oocfmt_trace::compare::median_sorted(&pass_ms);
     let frames = cameras.len().max(1) as f64;
     let row = Row {
-        cache: kind.to_string(),
+        cache: kind.name().to_string(),
         lod: lod.name(),
         poe,
         settle_frames,

@@ -14,7 +14,6 @@ use plotters_backend::{
 
 use super::{model_name, text, Row};
 use crate::error::CliError;
-use crate::render::cli_error;
 
 const SIZE: (u32, u32) = (960, 640);
 
@@ -67,7 +66,7 @@ pub fn write(path: &Path, model: &Path, rows: &[Row]) -> Result<(), CliError> {
                 root.present().map_err(|e| io_error(path, e))?;
             }
             oocfmt_trace::output::write_png(path, canvas.width, canvas.height, &canvas.rgb)
-                .map_err(cli_error)
+                .map_err(CliError::from)
         }
         None => Err(CliError::Usage(format!(
             "--plot {}: expected a file name ending in .svg or .png",

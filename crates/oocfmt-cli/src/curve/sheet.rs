@@ -8,7 +8,6 @@ use oocfmt_trace::Image;
 
 use super::{db, text, Shot};
 use crate::error::CliError;
-use crate::render::cli_error;
 
 const GAP: u32 = 4;
 const BACKGROUND: [u8; 3] = [32, 32, 36];
@@ -104,7 +103,7 @@ pub fn write(path: &Path, reference: &Image, shots: &[Shot]) -> Result<(), CliEr
             );
         }
     }
-    oocfmt_trace::output::write_png(path, sw, sh, &rgb).map_err(cli_error)
+    oocfmt_trace::output::write_png(path, sw, sh, &rgb).map_err(CliError::from)
 }
 
 /// Copies `image` into its tile of the sheet under its two label lines.
@@ -120,16 +119,14 @@ fn tile(
     let clip = (x0, y0, x0 + i64::from(l.w), y0 + i64::from(l.label));
     let line = i64::from(text::GLYPH * l.scale + 4);
     for (k, s) in label.iter().enumerate() {
-        text::draw(
-            rgb,
-            sw,
-            sh,
-            s,
-            (x0 + 2, y0 + 2 + k as i64 * line),
-            l.scale,
-            INK,
+        let label = text::Label {
+            text: s,
+            at: (x0 + 2, y0 + 2 + k as i64 * line),
+            scale: l.scale,
+            colour: INK,
             clip,
-        );
+        };
+        text::draw(rgb, sw, sh, &label);
     }
     let row_bytes = 3 * image.width as usize;
     let top = y0 as usize + l.label as usize;

@@ -47,19 +47,26 @@ pub fn pixels(text: &str, x0: i64, y0: i64, scale: u32, mut plot: impl FnMut(i64
     }
 }
 
-/// Draws `text` into an RGB8 picture of `width` × `height` (rows top to bottom), clipped to
-/// the rectangle `clip` = (x0, y0, x1, y1), exclusive at the far ends.
-#[allow(clippy::too_many_arguments)]
-pub fn draw(
-    rgb: &mut [u8],
-    width: u32,
-    height: u32,
-    text: &str,
-    (x, y): (i64, i64),
-    scale: u32,
-    colour: [u8; 3],
-    clip: (i64, i64, i64, i64),
-) {
+/// A line of text to draw: where (its top left corner), how large, in what colour, and the
+/// rectangle it is clipped to, (x0, y0, x1, y1), exclusive at the far ends.
+pub struct Label<'a> {
+    pub text: &'a str,
+    pub at: (i64, i64),
+    pub scale: u32,
+    pub colour: [u8; 3],
+    pub clip: (i64, i64, i64, i64),
+}
+
+/// Draws `label` into an RGB8 picture of `width` × `height` (rows top to bottom), within its
+/// clip rectangle and the picture.
+pub fn draw(rgb: &mut [u8], width: u32, height: u32, label: &Label<'_>) {
+    let Label {
+        text,
+        at: (x, y),
+        scale,
+        colour,
+        clip,
+    } = *label;
     let (cx0, cy0) = (clip.0.max(0), clip.1.max(0));
     let (cx1, cy1) = (clip.2.min(i64::from(width)), clip.3.min(i64::from(height)));
     pixels(text, x, y, scale, |px, py| {
@@ -96,7 +103,14 @@ mod tests {
     #[test]
     fn drawing_is_clipped() {
         let mut rgb = vec![0u8; 3 * 8 * 8];
-        draw(&mut rgb, 8, 8, "MM", (-4, 0), 1, [255, 0, 0], (0, 0, 4, 8));
+        let label = Label {
+            text: "MM",
+            at: (-4, 0),
+            scale: 1,
+            colour: [255, 0, 0],
+            clip: (0, 0, 4, 8),
+        };
+        draw(&mut rgb, 8, 8, &label);
         for y in 0..8 {
             for x in 4..8 {
                 assert_eq!(rgb[3 * (y * 8 + x)], 0);
