@@ -62,24 +62,26 @@ impl Codec {
 /// output length is an error, whatever the compressed data claims.
 pub fn decode_into(codec: CodecId, stored: &[u8], out: &mut [u8]) -> Result<()> {
     let fail = |detail: String| Error::malformed(Code::BlockDecompress, detail);
-    let produced =
-        match codec {
-            CodecId::None => {
-                if stored.len() != out.len() {
-                    return Err(fail(format!(
-                        "{} stored bytes for {} raw bytes",
-                        stored.len(),
-                        out.len()
-                    )));
-                }
-                out.copy_from_slice(stored);
-                out.len()
+    let produced = match codec {
+        CodecId::None => {
+            if stored.len() != out.len() {
+                return Err(fail(format!(
+                    "{} stored bytes for {} raw bytes",
+                    stored.len(),
+                    out.len()
+                )));
             }
-            CodecId::Lz4 => lz4_flex::block::decompress_into(stored, out)
-                .map_err(|e| fail(format!("lz4: {e}")))?,
-            CodecId::Zstd => zstd::bulk::decompress_to_buffer(stored, out)
-                .map_err(|e| fail(format!("zstd: {e}")))?,
-        };
+            out.copy_from_slice(stored);
+            out.len()
+        }
+        CodecId::Lz4 => {
+            lz4_flex::block::decompress_into(stored, out).map_err(|e| fail(format!("lz4: {e}")))?
+        }
+        CodecId::Zstd => {
+            check_zstd_frame(stored, out.len()).map_err(fail)?;
+            zstd::bulk::decompress_to_buffer(stored, out).map_err(|e| fail(format!("zstd: {e}")))?
+        }
+    };
     if produced != out.len() {
         return Err(fail(format!(
             "{} produced {produced} bytes, the directory says {}",
@@ -88,6 +90,61 @@ pub fn decode_into(codec: CodecId, stored: &[u8], out: &mut [u8]) -> Result<()> 
         )));
     }
     Ok(())
+}
+
+/// The zstd frame magic, little-endian (RFC 8878 §3.1.1).
+const ZSTD_MAGIC: [u8; 4] = [0x28, 0xb5, 0x2f, 0xfd];
+
+/// The frame rules of spec §4, checked here so that they hold whatever the zstd library
+/// accepts (it decodes skippable and concatenated frames, and frames without a content size):
+/// the stored bytes are exactly one zstd frame, with no dictionary, whose header states a
+/// content size equal to the raw length.
+fn check_zstd_frame(stored: &[u8], raw_length: usize) -> std::result::Result<(), String> {
+    if stored.get(..4) != Some(&ZSTD_MAGIC[..]) {
+        return Err("zstd: the stored bytes do not start with a zstd frame's magic".into());
+    }
+    let descriptor = stored
+        .get(4)
+        .copied()
+        .ok_or("zstd: the frame header is cut short")?;
+    let fcs_flag = descriptor >> 6;
+    let single_segment = descriptor & 0x20 != 0;
+    let dict_flag = descriptor & 0x03;
+    if dict_flag != 0 {
+        return Err("zstd: the frame names a dictionary".into());
+    }
+    let fcs_len = match (fcs_flag, single_segment) {
+        (0, false) => {
+            return Err("zstd: the frame header does not state the content size".into());
+        }
+        (0, true) => 1,
+        (1, _) => 2,
+        (2, _) => 4,
+        _ => 8,
+    };
+    // The field follows the descriptor and, without the single-segment flag, the window byte.
+    let at = 5 + usize::from(!single_segment);
+    let field = stored
+        .get(at..at + fcs_len)
+        .ok_or("zstd: the frame header is cut short")?;
+    let mut le = [0u8; 8];
+    le.get_mut(..fcs_len)
+        .ok_or("zstd: content size field")?
+        .copy_from_slice(field);
+    let size = u64::from_le_bytes(le) + if fcs_len == 2 { 256 } else { 0 };
+    if size != raw_length as u64 {
+        return Err(format!(
+            "zstd: the frame states {size} content bytes, the directory says {raw_length}"
+        ));
+    }
+    match zstd::zstd_safe::find_frame_compressed_size(stored) {
+        Ok(n) if n == stored.len() => Ok(()),
+        Ok(n) => Err(format!(
+            "zstd: the frame ends at byte {n} of {} stored bytes",
+            stored.len()
+        )),
+        Err(code) => Err(format!("zstd: {}", zstd::zstd_safe::get_error_name(code))),
+    }
 }
 
 #[cfg(test)]

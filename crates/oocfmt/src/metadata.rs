@@ -103,6 +103,10 @@ impl Metadata {
 
     /// Decodes metadata. Trailing bytes are fields of a newer minor version: allowed only when
     /// `newer_minor` says the file is newer than this reader (spec §11).
+    ///
+    /// The value's bytes MUST be its canonical encoding, the one [`Metadata::encode`] writes
+    /// (spec §9): postcard also accepts over-long varints, and a value with two encodings
+    /// would give one content two file identities.
     pub fn decode(bytes: &[u8], newer_minor: bool) -> Result<Metadata> {
         let (meta, rest) = postcard::take_from_bytes::<Metadata>(bytes)
             .map_err(|e| Error::malformed(Code::MetadataDecode, format!("metadata: {e}")))?;
@@ -110,6 +114,23 @@ impl Metadata {
             return Err(Error::malformed(
                 Code::MetadataDecode,
                 format!("{} bytes after the metadata value", rest.len()),
+            ));
+        }
+        let used = bytes.get(..bytes.len() - rest.len()).unwrap_or(bytes);
+        let canonical = meta.encode()?;
+        if canonical != used {
+            let at = canonical
+                .iter()
+                .zip(used)
+                .position(|(a, b)| a != b)
+                .unwrap_or(canonical.len().min(used.len()));
+            return Err(Error::malformed(
+                Code::MetadataNonCanonical,
+                format!(
+                    "the value's {} bytes are not its canonical {}-byte encoding (first difference at byte {at})",
+                    used.len(),
+                    canonical.len()
+                ),
             ));
         }
         meta.check()?;

@@ -178,3 +178,36 @@ fn rlod_table_matches_the_code() {
         assert!(s.contains(&row), "{row}");
     }
 }
+
+/// Every issue code the prose names (a back-quoted upper-case word that is not a feature bit)
+/// is a code of `Code::ALL`, so a rule cannot name a code that no verifier reports.
+#[test]
+fn codes_named_in_the_prose_exist() {
+    let s = spec();
+    let features = ["PROXIES", "LOD_VOXELS", "LOD_RLODS", "LOD_NO_VOXELS"];
+    let known: BTreeSet<&str> = Code::ALL.iter().map(|c| c.as_str()).collect();
+    let mut named = BTreeSet::new();
+    for piece in s.split('`').skip(1).step_by(2) {
+        let code_like = piece.len() > 1
+            && piece
+                .chars()
+                .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
+            && piece.starts_with(|c: char| c.is_ascii_uppercase());
+        if code_like && !features.contains(&piece) {
+            named.insert(piece.to_string());
+        }
+    }
+    let unknown: Vec<&String> = named
+        .iter()
+        .filter(|n| !known.contains(n.as_str()))
+        .collect();
+    assert!(
+        unknown.is_empty(),
+        "spec names codes that do not exist: {unknown:?}"
+    );
+    assert!(
+        named.len() >= 40,
+        "only {} codes found in the prose",
+        named.len()
+    );
+}

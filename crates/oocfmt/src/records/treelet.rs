@@ -24,19 +24,28 @@ pub struct TreeletBlock<'a> {
 /// file's LOD kinds put there.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LodEntry {
+    /// The node's voxel; `None` for a non-LOD node or a file without voxels.
     pub voxel: Option<Voxel>,
+    /// The node's R-LOD record; `None` for a non-LOD node or a file without R-LODs.
     pub rlod: Option<Rlod>,
 }
 
 /// What one pass over a treelet block found.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TreeletSummary {
+    /// Treelets in the block.
     pub treelets: u64,
+    /// Basic (inner, same-treelet) nodes visited.
     pub basic_nodes: u64,
+    /// LOD nodes visited.
     pub lod_nodes: u64,
+    /// Leaves visited.
     pub leaves: u64,
+    /// 1-sample voxels decoded.
     pub voxels_single: u64,
+    /// 6-sample voxels decoded.
     pub voxels_six: u64,
+    /// R-LOD records decoded.
     pub rlods: u64,
 }
 
@@ -90,10 +99,12 @@ impl<'a> TreeletBlock<'a> {
         Ok(block)
     }
 
+    /// Number of treelets in the block (≥ 1).
     pub fn treelet_count(&self) -> usize {
         self.starts.len() / 4
     }
 
+    /// The node area: every treelet's nodes, in preorder, back to back.
     pub fn node_area(&self) -> &'a [u8] {
         self.nodes
     }
@@ -103,6 +114,7 @@ impl<'a> TreeletBlock<'a> {
         self.voxels
     }
 
+    /// The LOD kinds the block was parsed with: the layout of its LOD area.
     pub fn lod_kinds(&self) -> LodKinds {
         self.kinds
     }
@@ -186,9 +198,16 @@ impl<'a> TreeletBlock<'a> {
             stack.clear();
             stack.push(span.start);
             while let Some(pos) = stack.pop() {
+                // Spec §6.2: past the preorder position is a layout in another order
+                // (`NODE_ORDER`); before it, the node overlaps one already walked.
                 if pos != cursor {
+                    let code = if pos > cursor {
+                        Code::NodeOrder
+                    } else {
+                        Code::NodeOverlap
+                    };
                     return Err(Error::malformed(
-                        Code::NodeOverlap,
+                        code,
                         format!("treelet {t}: node at {pos} but preorder puts the next node at {cursor}"),
                     )
                     .at(pos as u64));
@@ -277,6 +296,7 @@ pub struct TreeletBlockWriter {
 }
 
 impl TreeletBlockWriter {
+    /// An empty block with no treelets.
     pub fn new() -> Self {
         Self::default()
     }
@@ -292,6 +312,7 @@ impl TreeletBlockWriter {
         self.nodes.len()
     }
 
+    /// Appends a node at [`TreeletBlockWriter::next_node_pos`] of the current treelet.
     pub fn push_node(&mut self, node: &Node) {
         node.encode_into(&mut self.nodes);
     }
@@ -323,6 +344,7 @@ impl TreeletBlockWriter {
         off
     }
 
+    /// Treelets begun so far.
     pub fn treelet_count(&self) -> usize {
         self.starts.len()
     }
@@ -348,6 +370,7 @@ impl TreeletBlockWriter {
         Ok(units as u16)
     }
 
+    /// The block's raw bytes: header, treelet starts, node area, LOD area.
     pub fn finish(self) -> Vec<u8> {
         let mut v = Vec::with_capacity(self.raw_len());
         v.put_u32(self.starts.len() as u32);

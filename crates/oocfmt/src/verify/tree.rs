@@ -149,6 +149,7 @@ pub(super) fn check(
         let Ok(block) = TreeletBlock::parse_with(&raw, LodKinds::of_header(&index.header)) else {
             continue;
         };
+        lod_area(v, id, &block);
         w.block(v, id, &e, &block);
     }
     w.totals(v, index);
@@ -488,6 +489,39 @@ impl Walk<'_> {
                 None,
             );
         }
+    }
+}
+
+/// Reports a LOD area that its LOD nodes' entries do not tile (spec §6.2): taken in node order
+/// (treelets in order, each in preorder, which is address order), every entry starts where the
+/// previous one ended, the first at 0, and the last ends at the area's end. So no byte of the
+/// area is unreferenced and no two LOD nodes share an entry.
+fn lod_area(v: &mut Verifier<'_>, id: u32, block: &TreeletBlock<'_>) {
+    let mut next = 0usize;
+    let mut first_problem = None;
+    let walked = block.walk_lods(|_, pos, node, entry| {
+        if let Node::Lod { voxel_offset, .. } = node {
+            let at = *voxel_offset as usize;
+            if at != next && first_problem.is_none() {
+                first_problem = Some(format!(
+                    "LOD node at {pos}: its LOD entry is at {at}, the previous one ends at {next}"
+                ));
+            }
+            let len = entry.voxel.map_or(0, |vx| vx.byte_len())
+                + entry.rlod.map_or(0, |_| crate::records::RLOD_LEN);
+            next = at.saturating_add(len);
+        }
+        Ok(())
+    });
+    if walked.is_err() {
+        return; // the block pass has reported it
+    }
+    let area = block.voxel_area().len();
+    let problem = first_problem.or_else(|| {
+        (next != area).then(|| format!("LOD entries end at {next}, the LOD area at {area}"))
+    });
+    if let Some(msg) = problem {
+        v.note_code(Code::LodArea, msg, Some(id));
     }
 }
 

@@ -99,7 +99,7 @@ pub fn fixture(name: &str) -> TestResult<Vec<u8>> {
     Ok(std::fs::read(&path)?)
 }
 
-fn opts(block_size_log2: u8, codec: Codec) -> WriteOptions {
+pub fn opts(block_size_log2: u8, codec: Codec) -> WriteOptions {
     WriteOptions {
         block_size_log2,
         codec,
@@ -107,7 +107,7 @@ fn opts(block_size_log2: u8, codec: Codec) -> WriteOptions {
     }
 }
 
-fn leaf(first: u16, count: u16, block: u32) -> Node {
+pub fn leaf(first: u16, count: u16, block: u32) -> Node {
     Node::Leaf {
         count,
         first,
@@ -115,7 +115,7 @@ fn leaf(first: u16, count: u16, block: u32) -> Node {
     }
 }
 
-fn metadata(
+pub fn metadata(
     scene: Scene,
     root: Option<TreeletRef>,
     counts: Counts,
@@ -141,7 +141,7 @@ fn metadata(
     }
 }
 
-fn scene(min: [f32; 3], max: [f32; 3]) -> Scene {
+pub fn scene(min: [f32; 3], max: [f32; 3]) -> Scene {
     Scene {
         bounds_min: min,
         bounds_max: max,
@@ -183,7 +183,7 @@ fn proxy(node_block: u32, area: f32) -> ProxyRecord {
     }
 }
 
-fn square_vertices(w: &mut TriangleBlockWriter, z: f32, attrs: u16) -> TestResult {
+pub fn square_vertices(w: &mut TriangleBlockWriter, z: f32, attrs: u16) -> TestResult {
     for (i, p) in [[0.0, 0.0, z], [1.0, 0.0, z], [1.0, 1.0, z], [0.0, 1.0, z]]
         .into_iter()
         .enumerate()
@@ -404,7 +404,6 @@ pub fn write_deep(path: &Path) -> TestResult<oocfmt::WriteSummary> {
     // Block 3: level 1.
     let mut t = TreeletBlockWriter::new();
     t.begin_treelet();
-    t.push_voxel(&single(0.1)); // an unreferenced voxel is allowed
     let vox = t.push_voxel(&single(0.9));
     t.push_node(&Node::Lod {
         axis: 1,
@@ -619,4 +618,45 @@ pub fn with_metadata(b: &[u8], meta: &[u8]) -> TestResult<Vec<u8>> {
         len,
     );
     reseal(&out)
+}
+
+/// Re-writes a valid file through the public writer, block by block: `edit` gets each block's
+/// id, directory entry and raw bytes and returns what to store (see [`encode_like`] to keep the
+/// block's own codec), and the file ends with `meta`. Rule tests use it to build a file that
+/// breaks one rule and nothing else.
+pub fn rebuild(
+    bytes: &[u8],
+    meta: &Metadata,
+    mut edit: impl FnMut(u32, &oocfmt::BlockEntry, Vec<u8>) -> TestResult<oocfmt::EncodedBlock>,
+) -> TestResult<Vec<u8>> {
+    let r = open_bytes(bytes, oocfmt::ReadOptions::default())?;
+    let dir = tempfile::tempdir()?;
+    let path = dir.path().join("rebuilt.oocf");
+    let wopts = WriteOptions {
+        lod: r.lod_kinds(),
+        ..opts(r.header().block_size_log2, Codec::None)
+    };
+    let mut w = Writer::create(&path, wopts)?;
+    for id in 0..r.header().sections.block_count {
+        let b = r.read_block(id)?;
+        w.write_encoded(edit(id, &b.entry, b.data)?)?;
+    }
+    w.finish(meta)?;
+    Ok(std::fs::read(&path)?)
+}
+
+/// `raw` encoded as block `e` of the source was: same kind, level, item count and codec.
+pub fn encode_like(e: &oocfmt::BlockEntry, raw: &[u8]) -> TestResult<oocfmt::EncodedBlock> {
+    let codec = match e.codec {
+        oocfmt::CodecId::None => Codec::None,
+        oocfmt::CodecId::Lz4 => Codec::Lz4,
+        oocfmt::CodecId::Zstd => Codec::Zstd(3),
+    };
+    Ok(oocfmt::EncodedBlock::encode(
+        codec,
+        e.kind,
+        e.level,
+        e.item_count,
+        raw,
+    )?)
 }
