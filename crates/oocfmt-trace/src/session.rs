@@ -237,10 +237,10 @@ pub fn settle(
 /// the fetchers' time are those since the previous frame's step, up to this frame's step.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct FrameFigures {
-    /// The frame's rays.
+    /// Milliseconds of wall time tracing and shading the frame's rays ([`FrameStats::ms`]).
     pub ms: f64,
-    /// The cache's step after the frame (publishing, ranking, evicting): part of the time
-    /// between two frames, apart from `ms`.
+    /// Milliseconds of the cache's step after the frame (publishing, ranking, evicting): part
+    /// of the time between two frames, apart from `ms`.
     pub step_ms: f64,
     /// Rays (primary, shadow, ambient occlusion) per second of `ms`.
     pub rays_per_second: f64,
@@ -262,15 +262,15 @@ pub struct FrameFigures {
     pub hit_rate: f64,
     /// Distinct blocks the frame wanted and did not find resident (its misses).
     pub blocks_missed: u64,
-    /// Look-ahead prefetching after the step: predicting and probing the next cameras and
-    /// queueing what they want (0 without it).
+    /// Milliseconds of look-ahead prefetching after the step: predicting and probing the next
+    /// cameras and queueing what they want (0 without it).
     pub prefetch_ms: f64,
     /// Of `blocks_loaded`, the ones prefetched.
     pub blocks_prefetched: u64,
     /// Prefetched blocks (loaded by any step) that this frame used for the first time.
     pub blocks_prefetch_used: u64,
-    /// The fetchers' CPU time reading and decoding blocks between the step before this frame
-    /// and the one after it (asynchronous cache).
+    /// Milliseconds of the fetchers' CPU time reading and decoding blocks between the step
+    /// before this frame and the one after it (asynchronous cache).
     pub fetch_cpu_ms: f64,
 }
 

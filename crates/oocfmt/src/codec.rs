@@ -6,7 +6,9 @@ use crate::error::{Code, Error, Result};
 /// A codec with its settings, as a writer chooses it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Codec {
+    /// Store blocks as they are (codec id 0).
     None,
+    /// One LZ4 block per block, without the LZ4 frame (codec id 1): fast to decode, the default.
     #[default]
     Lz4,
     /// zstd at a level in 1 ..= 22.
@@ -14,8 +16,10 @@ pub enum Codec {
 }
 
 impl Codec {
+    /// The zstd level that `zstd` without `:LEVEL` means (zstd's own default).
     pub const DEFAULT_ZSTD_LEVEL: i32 = 3;
 
+    /// The codec id this codec writes into directory entries when it makes a block smaller.
     pub fn id(self) -> CodecId {
         match self {
             Codec::None => CodecId::None,

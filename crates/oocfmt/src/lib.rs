@@ -20,6 +20,8 @@
 //! # Ok::<(), oocfmt::Error>(())
 //! ```
 
+#![deny(missing_docs)]
+
 mod bytes;
 pub mod checksum;
 pub mod codec;
@@ -46,3 +48,7 @@ pub use reader::{Block, Checksums, Limits, ReadOptions, Reader};
 pub use source::{ByteSource, FileSource};
 pub use trailer::Trailer;
 pub use writer::{EncodedBlock, WriteOptions, WriteSummary, Writer};
+
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+pub struct ReadmeDoctests;

@@ -26,12 +26,18 @@ use crate::summary::{survey_block, BlockFacts};
 use crate::trailer::{Trailer, TRAILER_LEN};
 use crate::Checksums;
 
+/// How [`verify`] checks a file. The default is [`Depth::Full`], 1000 issues, the reader's
+/// default limits, and block CRCs checked.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct VerifyOptions {
+    /// How much of the file to check.
     pub depth: Depth,
     /// Issues kept in the report; the rest are only counted.
     pub max_issues: usize,
+    /// The reader limits the file must keep; a size over one is an issue (`LIMIT_EXCEEDED`,
+    /// `METADATA_LIMIT`), not a refusal.
     pub limits: Limits,
+    /// Whether block CRCs are checked ([`Checksums::Skip`] is for fuzzing).
     pub checksums: Checksums,
 }
 
