@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Speed against error: generates scenes, converts them and runs `oocfmt curve --json` on each,
-printing the README's Markdown table (per PoE: warm frame time and its ratio to PoE 0, rays per
+printing the Markdown table of docs/benchmarks.md (per PoE: warm frame time and its ratio to PoE 0, rays per
 second, nodes per ray, working set, blocks touched, the share of rays ending on voxels, and the
 error against full detail). Writes each scene's plot and contact sheet beside its container.
 Timings are medians of `--repeat` warm frames; compare ratios within one run. The machine is

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Models larger than memory: the README's tables after Table 5 and 6 of the Áfra paper.
+"""Models larger than memory: the tables of docs/benchmarks.md after Table 5 and 6 of the Áfra paper.
 
 For each Mandelbulb size in --tris (generated once, kept in --dir), converts it under
 --mem-limit (default 2G) and reports the conversion: wall time, triangles per second, the

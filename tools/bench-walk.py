@@ -58,7 +58,7 @@ def render_path(model, cams, work, name, extra):
     """Renders `cams` as a walkthrough; returns its per-frame figures, each with the digest of
     its PNG (`png_sha256`). The run's files are deleted at once: a set of runs at 1024x768
     writes about 770 MiB of PNGs, which would otherwise stay on disk and in the page cache
-    while the later runs are timed (README, "PNGs deleted after each run")."""
+    while the later runs are timed (docs/notes/2026-12-01-cold-start-frame-bound.md)."""
     path = os.path.join(work, f"{name}.json")
     with open(path, "w") as f:
         json.dump(cams, f)

@@ -3,9 +3,10 @@
 //! With as many render threads as cores, the scheduler can still put two of them on one core
 //! while another core runs something less urgent, such as a fetcher 10 nice levels below: it
 //! then counts that core as busy and may leave both render threads sharing the first for tens
-//! of milliseconds (a scheduler trace of the 100M walkthrough in README shows 24 ms of that in
-//! one cold frame). Bound each to its own core, two render threads never wait for the same
-//! core; the fetchers, unbound, run wherever a render thread leaves time.
+//! of milliseconds (24 ms in one cold frame of a traced walkthrough:
+//! docs/notes/2026-12-01-cold-start-frame-bound.md). Bound each to its own core, two render
+//! threads never wait for the same core; the fetchers, unbound, run wherever a render thread
+//! leaves time.
 
 /// The cores this process may run on, in increasing order (Linux: its affinity mask); `None`
 /// where the system does not say.

@@ -88,25 +88,15 @@ impl Default for AsyncOptions {
     }
 }
 
-/// How many nice levels below the render threads the fetchers run by default. On 2 cores busy
-/// rendering, a fetcher 10 levels below gets about a tenth of a core (scheduler weight 110
-/// against 1024 per render thread at nice 0) and all the time the render threads leave between
-/// frames; at nice 19 it got so little that a 10M-triangle walkthrough never converged (README,
-/// "Walkthroughs").
+/// How many nice levels below the render threads the fetchers run by default: about a tenth of
+/// a core while 2 cores render, and all the time left between frames (at 19 a 10M walkthrough
+/// never converged; docs/notes/2026-12-01-fetch-share.md).
 pub const DEFAULT_FETCHER_NICE: u8 = 10;
 
-/// The fetchers' default CPU time per frame, as a share of the last frame's duration. Fetching
-/// while a frame renders takes its CPU from the render threads, whatever the fetchers' nice
-/// value: with R render threads on R cores, a frame of warm time W that lets the fetchers spend
-/// the share s of its duration F takes F = W + s·F/R, so F = W / (1 − s/R) once the budget is
-/// used up. On 2 cores that is 1.08 W at 0.15, 1.14 W at 0.25 and 1.33 W at 0.5. Per-thread
-/// scheduler figures of the 100M walkthrough of README bear it out: in 6 of its 8 cold frames
-/// over 1.3 times the warm ones the render threads used 1–11 % more CPU than warm, and waited
-/// for a core about as long as the fetcher ran. On that walkthrough at 1024×768 (warm frames of
-/// 45–100 ms) 9 of 20 cold runs at 0.25 had a frame over 1.5 times the median of warm processes
-/// measured alongside and 6 of 30 at 0.15, where warm processes, which fetch nothing, had one in
-/// 3 of 36. Since blocks decode faster, 0.15 reaches full detail as soon as 0.25 did; 0.1 left 6
-/// of 10 runs short of it by the walk's end (README, "Triangle blocks decoded in bulk").
+/// The fetchers' default CPU time per frame, as a share of the last frame's duration. In-frame
+/// fetching takes its CPU from the render threads, so with R threads a frame of warm time W
+/// takes W / (1 − s/R) once the budget is spent: 1.08 W at 0.15 on 2 cores, which still reaches
+/// full detail as fast as larger shares (docs/notes/2026-12-01-fetch-share.md).
 pub const DEFAULT_FETCH_SHARE: f64 = 0.15;
 
 /// CPU time the calling thread has used, where the system tells (Linux); else `None`, and
