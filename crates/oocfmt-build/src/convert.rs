@@ -5,11 +5,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use oocfmt::{BlockKind, ReadOptions, Reader};
+use oocfmt::{BlockKind, ReadOptions, Reader, WriteSummary};
 
 use crate::kdtree::{self, KdBuildOptions, KdError};
 use crate::layout::{build_blocks, write_blocks, LayoutError, LayoutOptions};
-use crate::ooc::soup::{finish_soup, soup_sink};
+use crate::ooc::soup::{finish_soup, soup_sink, Soup};
 use crate::ooc::{self, OocError};
 use crate::progress::Progress;
 use crate::report::{peak_memory, BlockStats, ConvertReport, PhaseTime};
@@ -148,19 +148,14 @@ pub fn convert(
             source,
         })?;
     let chunk_triangles = opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE;
-    let mut sink = soup_sink(
-        &spill.path().join("import.soup"),
-        opts.strict,
-        Some(chunk_triangles),
-    )?
-    .with_origin(origin);
-    progress.phase("import", Some(inputs.len() as u64));
-    for (i, path) in inputs.iter().enumerate() {
-        import_one(path, &mut sink, opts)?;
-        progress.advance(i as u64 + 1);
-    }
-    progress.finish_phase();
-    let mut soup = finish_soup(sink)?;
+    let soup = import_soup(
+        inputs,
+        opts,
+        spill.path(),
+        chunk_triangles,
+        origin,
+        progress,
+    )?;
     phases.done("import");
     let mut import_report = soup.report.clone();
     if let Some(w) = precision_warning(&import_report, &soup.bounds) {
@@ -172,29 +167,7 @@ pub fn convert(
     layout.params.extend(opts.recentre.params(origin));
 
     let (written, out_of_core) = if soup.count <= chunk_triangles {
-        let mesh = soup.load_mesh()?;
-        std::fs::remove_file(&soup.path).map_err(|e| OocError::spill(&soup.path, e))?;
-        phases.done("load");
-        progress.phase("kd-tree", None);
-        let tree = kdtree::build(&mesh, &opts.kd)?;
-        progress.finish_phase();
-        phases.done("kd-tree");
-
-        progress.phase("LOD + layout", None);
-        let container = build_blocks(&mesh, &tree, &layout)?;
-        progress.finish_phase();
-        phases.done("lod+layout");
-        // Freeing the tree's millions of leaf lists takes a while: beside the writing.
-        let freed = std::thread::spawn(move || drop((tree, mesh)));
-
-        progress.phase("write", Some(container.blocks.len() as u64));
-        let written = write_blocks(output, &container, layout.write, &mut |n| {
-            progress.advance(n)
-        });
-        drop(freed.join());
-        let written = written?;
-        progress.finish_phase();
-        phases.done("write");
+        let written = build_in_core(soup, output, &opts.kd, &layout, &mut phases, progress)?;
         (written, None)
     } else {
         let (written, stats) = ooc::build(
@@ -220,6 +193,63 @@ pub fn convert(
     report.peak_memory_bytes = peak_memory();
     report.mem_limit_bytes = opts.mem_limit;
     Ok(report)
+}
+
+/// Imports `inputs` into a spill file in `dir`, positions relative to `origin`. A scene of at
+/// most `chunk_triangles` triangles is also kept in memory as it is read.
+fn import_soup(
+    inputs: &[PathBuf],
+    opts: &ConvertOptions,
+    dir: &Path,
+    chunk_triangles: u64,
+    origin: [f64; 3],
+    progress: &mut dyn Progress,
+) -> Result<Soup, ConvertError> {
+    let mut sink = soup_sink(&dir.join("import.soup"), opts.strict, Some(chunk_triangles))?
+        .with_origin(origin);
+    progress.phase("import", Some(inputs.len() as u64));
+    for (i, path) in inputs.iter().enumerate() {
+        import_one(path, &mut sink, opts)?;
+        progress.advance(i as u64 + 1);
+    }
+    progress.finish_phase();
+    Ok(finish_soup(sink)?)
+}
+
+/// Builds a scene that fits in memory: its kd-tree, then its LOD data and blocks, then the
+/// file.
+fn build_in_core(
+    mut soup: Soup,
+    output: &Path,
+    kd: &KdBuildOptions,
+    layout: &LayoutOptions,
+    phases: &mut Phases,
+    progress: &mut dyn Progress,
+) -> Result<WriteSummary, ConvertError> {
+    let mesh = soup.load_mesh()?;
+    std::fs::remove_file(&soup.path).map_err(|e| OocError::spill(&soup.path, e))?;
+    phases.done("load");
+    progress.phase("kd-tree", None);
+    let tree = kdtree::build(&mesh, kd)?;
+    progress.finish_phase();
+    phases.done("kd-tree");
+
+    progress.phase("LOD + layout", None);
+    let container = build_blocks(&mesh, &tree, layout)?;
+    progress.finish_phase();
+    phases.done("lod+layout");
+    // Freeing the tree's millions of leaf lists takes a while: beside the writing.
+    let freed = std::thread::spawn(move || drop((tree, mesh)));
+
+    progress.phase("write", Some(container.blocks.len() as u64));
+    let written = write_blocks(output, &container, layout.write, &mut |n| {
+        progress.advance(n)
+    });
+    drop(freed.join());
+    let written = written?;
+    progress.finish_phase();
+    phases.done("write");
+    Ok(written)
 }
 
 /// A warning when f32 rounding moved positions by more than about a millionth of the model's

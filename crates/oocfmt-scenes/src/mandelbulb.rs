@@ -368,6 +368,13 @@ impl SlabCutter {
                 if inside == 0 || inside == 8 {
                     continue;
                 }
+                let cell = Cell {
+                    grid,
+                    k,
+                    x,
+                    y,
+                    values: &values,
+                };
                 for tet in TETRAHEDRA {
                     let mut mask = 0u8;
                     for (bit, &c) in tet.iter().enumerate() {
@@ -380,7 +387,7 @@ impl SlabCutter {
                         let mut face = [0u64; 3];
                         for (slot, &(a, b)) in face.iter_mut().zip(tri) {
                             let (ca, cb) = (tet[usize::from(a)], tet[usize::from(b)]);
-                            *slot = self.edge_vertex(grid, k, x, y, ca & cb, ca ^ cb, &values)?;
+                            *slot = self.edge_vertex(&cell, ca & cb, ca ^ cb)?;
                         }
                         self.faces.push(face);
                     }
@@ -398,19 +405,16 @@ impl SlabCutter {
         Ok(faces)
     }
 
-    /// The index of the vertex on the edge from cell corner `from` in direction `dir`,
-    /// created on first use.
-    #[allow(clippy::too_many_arguments)]
-    fn edge_vertex(
-        &mut self,
-        grid: &Grid,
-        k: u32,
-        x: usize,
-        y: usize,
-        from: u8,
-        dir: u8,
-        values: &[f32; 8],
-    ) -> Result<u64, GenError> {
+    /// The index of the vertex on the edge of `cell` from its corner `from` in direction
+    /// `dir`, created on first use.
+    fn edge_vertex(&mut self, cell: &Cell, from: u8, dir: u8) -> Result<u64, GenError> {
+        let Cell {
+            grid,
+            k,
+            x,
+            y,
+            values,
+        } = *cell;
         let (gx, gy) = (x + usize::from(from & 1), y + usize::from(from >> 1 & 1));
         let at = gy * self.points + gx;
         let (slot, base) = if dir & 4 != 0 {
@@ -457,6 +461,17 @@ impl SlabCutter {
             .push([0, 1, 2].map(|a| (p0[a] + t * step[a]) as f32));
         Ok(index)
     }
+}
+
+/// A grid cell being cut: the cell at (`x`, `y`) between planes `k` and `k + 1`, and the field
+/// at its eight corners (bit 0 x, bit 1 y, bit 2 z).
+#[derive(Clone, Copy)]
+struct Cell<'a> {
+    grid: &'a Grid,
+    k: u32,
+    x: usize,
+    y: usize,
+    values: &'a [f32; 8],
 }
 
 #[cfg(test)]

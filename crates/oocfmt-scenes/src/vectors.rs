@@ -136,67 +136,66 @@ pub fn lod_mesh() -> Mesh {
         [230, 200, 40, 255],
         [245, 245, 245, 255],
     );
-    // Each face: a corner, the two edge steps and their counts, normal, colour, material.
-    b.face(
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        4,
-        [0.0, 1.0, 0.0],
-        4,
-        [0.0, 0.0, 1.0],
-        floor,
-        0,
-    );
-    b.face(
-        [0.5, 0.5, 0.0],
-        [0.0, 0.5, 0.0],
-        2,
-        [0.0, 0.0, 0.5],
-        2,
-        [-1.0, 0.0, 0.0],
-        red,
-        1,
-    );
-    b.face(
-        [1.5, 0.5, 0.0],
-        [0.0, 0.5, 0.0],
-        2,
-        [0.0, 0.0, 0.5],
-        2,
-        [1.0, 0.0, 0.0],
-        green,
-        1,
-    );
-    b.face(
-        [0.5, 0.5, 0.0],
-        [0.5, 0.0, 0.0],
-        2,
-        [0.0, 0.0, 0.5],
-        2,
-        [0.0, -1.0, 0.0],
-        blue,
-        1,
-    );
-    b.face(
-        [0.5, 1.5, 0.0],
-        [0.5, 0.0, 0.0],
-        2,
-        [0.0, 0.0, 0.5],
-        2,
-        [0.0, 1.0, 0.0],
-        yellow,
-        1,
-    );
-    b.face(
-        [0.5, 0.5, 1.0],
-        [0.5, 0.0, 0.0],
-        2,
-        [0.0, 0.5, 0.0],
-        2,
-        [0.0, 0.0, 1.0],
-        white,
-        1,
-    );
+    b.face(Face {
+        corner: [0.0, 0.0, 0.0],
+        du: [1.0, 0.0, 0.0],
+        nu: 4,
+        dv: [0.0, 1.0, 0.0],
+        nv: 4,
+        normal: [0.0, 0.0, 1.0],
+        colour: floor,
+        material: 0,
+    });
+    b.face(Face {
+        corner: [0.5, 0.5, 0.0],
+        du: [0.0, 0.5, 0.0],
+        nu: 2,
+        dv: [0.0, 0.0, 0.5],
+        nv: 2,
+        normal: [-1.0, 0.0, 0.0],
+        colour: red,
+        material: 1,
+    });
+    b.face(Face {
+        corner: [1.5, 0.5, 0.0],
+        du: [0.0, 0.5, 0.0],
+        nu: 2,
+        dv: [0.0, 0.0, 0.5],
+        nv: 2,
+        normal: [1.0, 0.0, 0.0],
+        colour: green,
+        material: 1,
+    });
+    b.face(Face {
+        corner: [0.5, 0.5, 0.0],
+        du: [0.5, 0.0, 0.0],
+        nu: 2,
+        dv: [0.0, 0.0, 0.5],
+        nv: 2,
+        normal: [0.0, -1.0, 0.0],
+        colour: blue,
+        material: 1,
+    });
+    b.face(Face {
+        corner: [0.5, 1.5, 0.0],
+        du: [0.5, 0.0, 0.0],
+        nu: 2,
+        dv: [0.0, 0.0, 0.5],
+        nv: 2,
+        normal: [0.0, 1.0, 0.0],
+        colour: yellow,
+        material: 1,
+    });
+    b.face(Face {
+        corner: [0.5, 0.5, 1.0],
+        du: [0.5, 0.0, 0.0],
+        nu: 2,
+        dv: [0.0, 0.5, 0.0],
+        nv: 2,
+        normal: [0.0, 0.0, 1.0],
+        colour: white,
+        material: 1,
+    });
     let mut mesh = Mesh::new(b.positions, b.triangles);
     mesh.normals = Some(b.normals);
     mesh.colours = Some(b.colours);
@@ -250,6 +249,19 @@ fn vector_options(codec: Codec) -> Result<LayoutOptions, VectorError> {
     })
 }
 
+/// A flat face of `nu` × `nv` squares: from `corner`, steps `du` and `dv` along its edges,
+/// with one normal, colour and material.
+struct Face {
+    corner: [f32; 3],
+    du: [f32; 3],
+    nu: u32,
+    dv: [f32; 3],
+    nv: u32,
+    normal: [f32; 3],
+    colour: [u8; 4],
+    material: u16,
+}
+
 /// Accumulates grid faces with per-face vertices (normals differ across a cube edge).
 #[derive(Default)]
 struct BoxBuilder {
@@ -261,18 +273,18 @@ struct BoxBuilder {
 }
 
 impl BoxBuilder {
-    #[allow(clippy::too_many_arguments)]
-    fn face(
-        &mut self,
-        corner: [f32; 3],
-        du: [f32; 3],
-        nu: u32,
-        dv: [f32; 3],
-        nv: u32,
-        normal: [f32; 3],
-        colour: [u8; 4],
-        material: u16,
-    ) {
+    /// Adds `face` with its own vertices, its triangles wound to face along its normal.
+    fn face(&mut self, face: Face) {
+        let Face {
+            corner,
+            du,
+            nu,
+            dv,
+            nv,
+            normal,
+            colour,
+            material,
+        } = face;
         let base = self.positions.len() as u32;
         for j in 0..=nv {
             for i in 0..=nu {

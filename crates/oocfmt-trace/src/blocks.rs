@@ -188,6 +188,14 @@ pub struct TreeletData {
     pub roots: Vec<u32>,
 }
 
+/// What a LOD node's links are checked against while decoding: the file's directory, the
+/// level of the block being decoded, and the LOD kind the traversal reads.
+struct Links<'a> {
+    directory: &'a [BlockEntry],
+    level: u16,
+    kind: LodKind,
+}
+
 /// A thread's working arrays for decoding blocks, kept between blocks: a fetcher decodes block
 /// after block, and fresh pages are dear (the kernel zeroes each on first touch; page faults
 /// were half of a fetcher's profile in a cold walkthrough, README). A treelet block is built
@@ -215,6 +223,99 @@ thread_local! {
 }
 
 impl Scratch {
+    /// Decodes the node at byte `pos` (with its LOD `entry`) as the next node. A right child
+    /// is noted to be linked once every node has its index.
+    #[inline]
+    fn push_node(
+        &mut self,
+        links: &Links,
+        pos: usize,
+        node: &Node,
+        entry: &LodEntry,
+    ) -> Result<()> {
+        let i = self.nodes.len();
+        if let Some(slot) = self.index.get_mut(pos / 8) {
+            *slot = i as u32;
+        }
+        let node = match *node {
+            Node::Basic {
+                axis,
+                split,
+                left,
+                right,
+            } => {
+                // The walk's preorder check puts the left child right after its parent; the
+                // traversal relies on it, so it is checked here too.
+                if left != 0 && left as usize * 8 != NODE_BASIC_LEN {
+                    return Err(not_a_node(i, "left", TreeletBlock::child_pos(pos, left)));
+                }
+                if right != 0 {
+                    self.rights
+                        .push((i as u32, TreeletBlock::child_pos(pos, right)));
+                }
+                DNode::inner(axis, split, left != 0)
+            }
+            Node::Lod {
+                axis,
+                split,
+                radius,
+                left_present,
+                right_present,
+                child_treelet,
+                child_block,
+                voxel_offset: _,
+                proxy,
+            } => {
+                check_link(links.directory, links.level, child_block, pos)?;
+                let lod = self.lods.len();
+                let (radius, at) = look(links.kind, entry, radius, self, pos)?;
+                let [left, right] =
+                    lod_child_treelets(child_treelet, [left_present, right_present])
+                        .map(|t| t.unwrap_or(NONE));
+                self.lods.push(Lod {
+                    radius,
+                    left,
+                    right,
+                    child_block,
+                });
+                self.looks.push(LookAt { at, proxy });
+                DNode::lod(axis, split, index_within(lod, MAX_LOD, pos)?)
+            }
+            Node::Leaf {
+                count,
+                first,
+                block,
+            } => DNode::leaf(
+                Leaf {
+                    block,
+                    first,
+                    count,
+                },
+                &mut self.spilled,
+            ),
+        };
+        self.nodes.push(node);
+        Ok(())
+    }
+
+    /// Gives each inner node noted with a right child that child's index (an error in block
+    /// `block` where no node starts at the child's byte).
+    fn link_rights(&mut self, block: u32) -> Result<()> {
+        for &(node, child) in &self.rights {
+            let at = self.index.get(child / 8).copied().unwrap_or(NONE);
+            let bad = || not_a_node(node as usize, "right", child).in_block(block);
+            if at == NONE {
+                return Err(bad());
+            }
+            let right =
+                index_within(at as usize, MAX_RIGHT, child).map_err(|e| e.in_block(block))?;
+            match self.nodes.get_mut(node as usize) {
+                Some(n) => n.set_right(right),
+                None => return Err(bad()),
+            }
+        }
+        Ok(())
+    }
     /// Empties the treelet arrays for a block of `slots` 8-byte node units.
     fn reset(&mut self, slots: usize) {
         self.index.clear();
@@ -264,85 +365,14 @@ impl TreeletData {
     ) -> Result<TreeletData> {
         let tb = block.treelets()?;
         s.reset(tb.node_area().len() / 8);
-        tb.walk_lods(|_, pos, node, entry| {
-            let i = s.nodes.len();
-            if let Some(slot) = s.index.get_mut(pos / 8) {
-                *slot = i as u32;
-            }
-            let node = match *node {
-                Node::Basic {
-                    axis,
-                    split,
-                    left,
-                    right,
-                } => {
-                    // The walk's preorder check puts the left child right after its parent;
-                    // the traversal relies on it, so it is checked here too.
-                    if left != 0 && left as usize * 8 != NODE_BASIC_LEN {
-                        return Err(not_a_node(i, "left", TreeletBlock::child_pos(pos, left)));
-                    }
-                    if right != 0 {
-                        s.rights
-                            .push((i as u32, TreeletBlock::child_pos(pos, right)));
-                    }
-                    DNode::inner(axis, split, left != 0)
-                }
-                Node::Lod {
-                    axis,
-                    split,
-                    radius,
-                    left_present,
-                    right_present,
-                    child_treelet,
-                    child_block,
-                    voxel_offset: _,
-                    proxy,
-                } => {
-                    check_link(directory, block.entry.level, child_block, pos)?;
-                    let lod = s.lods.len();
-                    let (radius, at) = look(kind, entry, radius, s, pos)?;
-                    let [left, right] =
-                        lod_child_treelets(child_treelet, [left_present, right_present])
-                            .map(|t| t.unwrap_or(NONE));
-                    s.lods.push(Lod {
-                        radius,
-                        left,
-                        right,
-                        child_block,
-                    });
-                    s.looks.push(LookAt { at, proxy });
-                    DNode::lod(axis, split, index_within(lod, MAX_LOD, pos)?)
-                }
-                Node::Leaf {
-                    count,
-                    first,
-                    block,
-                } => DNode::leaf(
-                    Leaf {
-                        block,
-                        first,
-                        count,
-                    },
-                    &mut s.spilled,
-                ),
-            };
-            s.nodes.push(node);
-            Ok(())
-        })
-        .map_err(|e| e.in_block(block.id))?;
-        for &(node, child) in &s.rights {
-            let at = s.index.get(child / 8).copied().unwrap_or(NONE);
-            let bad = || not_a_node(node as usize, "right", child).in_block(block.id);
-            if at == NONE {
-                return Err(bad());
-            }
-            let right =
-                index_within(at as usize, MAX_RIGHT, child).map_err(|e| e.in_block(block.id))?;
-            match s.nodes.get_mut(node as usize) {
-                Some(n) => n.set_right(right),
-                None => return Err(bad()),
-            }
-        }
+        let links = Links {
+            directory,
+            level: block.entry.level,
+            kind,
+        };
+        tb.walk_lods(|_, pos, node, entry| s.push_node(&links, pos, node, entry))
+            .map_err(|e| e.in_block(block.id))?;
+        s.link_rights(block.id)?;
         let roots = (0..tb.treelet_count())
             .map(|t| {
                 let span = tb.treelet_span(t)?;

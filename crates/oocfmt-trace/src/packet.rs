@@ -47,6 +47,24 @@ struct Entry<'m, const N: usize> {
     axis: [u32; N],
 }
 
+impl<'m, const N: usize> Entry<'m, N> {
+    /// The far side `far` of a split, stacked below `lods` LOD nodes of the path; `check`: the
+    /// rays that stacked it by their own decision.
+    #[inline(always)]
+    fn far(far: At<'m, N>, lods: u8, check: Mask) -> Entry<'m, N> {
+        Entry {
+            data: far.data,
+            node: far.node,
+            lods,
+            active: far.active,
+            check,
+            t0: far.t0,
+            t1: far.t1,
+            axis: far.axis,
+        }
+    }
+}
+
 /// A LOD node on the packet's path, with each ray's interval in its cell and entry axis.
 #[derive(Clone, Copy)]
 struct LastVoxels<'m, const N: usize> {
@@ -95,6 +113,17 @@ impl<const N: usize> Lanes<N> {
             left_first,
         })
     }
+
+    /// The children `left` and `right` of a split of axis `a` in the order the rays meet
+    /// them.
+    #[inline(always)]
+    fn in_order(&self, a: u8, left: u32, right: u32) -> (u32, u32) {
+        if self.left_first[usize::from(a.min(2))] {
+            (left, right)
+        } else {
+            (right, left)
+        }
+    }
 }
 
 /// The decisions of every ray at a split plane: which rays visit the side they meet first and
@@ -120,6 +149,26 @@ struct At<'m, const N: usize> {
 }
 
 impl<'m, const N: usize> At<'m, N> {
+    /// Where the packet goes on from popped entry `e`: with the rays of `e` that still visit
+    /// it (a ray that stacked it itself skips it when it starts beyond its nearest hit at
+    /// `best_t`, with tolerance `eps`). None when no ray does.
+    #[inline(always)]
+    fn resume(e: &Entry<'m, N>, best_t: &[f32; N], eps: &[f32; N]) -> Option<At<'m, N>> {
+        let mut beyond: Mask = 0;
+        for i in 0..N {
+            beyond |= Mask::from(e.t0[i] > best_t[i] + eps[i]) << i;
+        }
+        let active = e.active & !(e.check & beyond);
+        (active != 0).then_some(At {
+            data: e.data,
+            node: e.node,
+            active,
+            t0: e.t0,
+            t1: e.t1,
+            axis: e.axis,
+        })
+    }
+
     /// Each ray's decision at a split plane of axis `a` at `split`, between the child met
     /// first and the second one ([`NONE`]: no child), for the rays of `active`.
     #[inline(always)]
@@ -241,77 +290,28 @@ impl Tracer<'_> {
         kernel: &RayLanes<N>,
         memo: &'m Memo,
     ) -> [Option<Hit>; N] {
-        let mut best = [Best::<'m>::None; N];
-        let mut best_t = [f32::INFINITY; N];
-        let (mut t0, mut t1, mut axis) = ([0f32; N], [0f32; N], [3u32; N]);
-        let mut live: Mask = 0;
-        for (i, ray) in rays.iter().enumerate() {
-            let eps = lanes.eps[i];
-            if let Some((a, b, ax)) = ray_box(ray, self.lo, self.hi, eps, 0.0, f32::INFINITY) {
-                (t0[i], t1[i], axis[i]) = (a, b, ax.map_or(3, |a| a as u32));
-                live |= 1 << i;
-            }
-        }
-        if live == 0 {
-            return [const { None }; N];
-        }
-        let Some((root_block, root_treelet)) = self.root else {
-            return [const { None }; N];
+        let p = Packet {
+            rays,
+            keys,
+            lanes,
+            kernel,
+            memo,
         };
-        let Some(root_data) = memo.treelets(self.cache, root_block) else {
-            for i in rays_of(live) {
-                memo.want_later(keys[i], root_block, f32::INFINITY, t0[i]);
-            }
-            return [const { None }; N];
-        };
-        let Some(&root) = root_data.roots.get(root_treelet as usize) else {
+        let mut lasts = LastsN::new();
+        let mut near = Nearest::new();
+        let Some(root) = self.packet_root(&p) else {
             return [const { None }; N];
         };
         let mut stack = ArrayVec::<Entry<'m, N>, { MAX_TREE_DEPTH as usize }>::new();
-        stack.push(Entry {
-            data: root_data,
-            node: root,
-            lods: 0,
-            active: live,
-            check: live,
-            t0,
-            t1,
-            axis,
-        });
-        let mut lasts = ArrayVec::<LastVoxels<'m, N>, { MAX_TREE_DEPTH as usize }>::new();
+        stack.push(root);
         let mut visited = 0u64;
         // Nodes the packet visited, held to the tracer's bound as a single ray's are.
         let mut steps = 0u64;
-        // A ray that found `found` on the current path keeps it when it is nearer.
-        let offer = |best: &mut [Best<'m>; N],
-                     best_t: &mut [f32; N],
-                     i: usize,
-                     found: Option<(f32, Best<'m>)>| {
-            if let (Some((t, s)), Some(bt), Some(b)) = (found, best_t.get_mut(i), best.get_mut(i)) {
-                if t < *bt {
-                    *bt = t;
-                    *b = s;
-                }
-            }
-        };
         'packet: while let Some(e) = stack.pop() {
-            let mut beyond: Mask = 0;
-            for i in 0..N {
-                beyond |= Mask::from(e.t0[i] > best_t[i] + lanes.eps[i]) << i;
-            }
-            let active = e.active & !(e.check & beyond);
-            if active == 0 {
+            let Some(mut at) = At::resume(&e, &near.best_t, &lanes.eps) else {
                 continue;
-            }
-            let mut lods = e.lods;
-            let mut at = At {
-                data: e.data,
-                node: e.node,
-                active,
-                t0: e.t0,
-                t1: e.t1,
-                axis: e.axis,
             };
+            let mut lods = e.lods;
             lasts.truncate(usize::from(lods));
             while let Some(n) = at.data.node(at.node) {
                 visited += rays_in::<N>(at.active);
@@ -326,11 +326,7 @@ impl Tracer<'_> {
                         left,
                         right,
                     } => {
-                        let (first, second) = if lanes.left_first[usize::from(a.min(2))] {
-                            (left, right)
-                        } else {
-                            (right, left)
-                        };
+                        let (first, second) = lanes.in_order(a, left, right);
                         let s = at.split(lanes, at.active, a, split, first, second);
                         (s, first, second, at.data)
                     }
@@ -338,128 +334,23 @@ impl Tracer<'_> {
                         axis: a,
                         split,
                         lod,
-                    } => {
-                        let data = at.data;
-                        let Some(l) = data.lods.get(lod as usize) else {
-                            break;
-                        };
-                        lods = push_last(
-                            &mut lasts,
-                            LastVoxels {
-                                data,
-                                lod,
-                                radius: l.radius,
-                                t: at.t0,
-                                t1: at.t1,
-                                axis: at.axis,
-                            },
-                        );
-                        let mut stop: Mask = 0;
-                        if self.lod_c > 0.0 {
-                            for i in 0..N {
-                                stop |= Mask::from(l.radius <= at.t0[i] * self.lod_c) << i;
-                            }
-                        }
-                        stop &= at.active;
-                        let go = at.active & !stop;
-                        let child = if go != 0 {
-                            memo.treelets(self.cache, l.child_block)
-                        } else {
-                            None
-                        };
-                        // The rays that end here: those that stop, and, without the child
-                        // block, all of them. Without the node's look they just end.
-                        let look = (stop != 0 || child.is_none()).then(|| data.look(lod));
-                        if let Some(Some((look, proxy))) = look {
-                            let proxy = proxy.and_then(|p| self.proxies.get(p as usize));
-                            let ends = if child.is_some() { stop } else { at.active };
-                            for (i, ray) in rays.iter().enumerate() {
-                                if ends >> i & 1 == 0 {
-                                    continue;
-                                }
-                                let (t0, t1, axis) = (at.t0[i], at.t1[i], at.axis[i] as u8);
-                                let own = || shown(&look, ray, t0, t1, axis, l.radius);
-                                let found = if stop >> i & 1 != 0 {
-                                    own()
-                                } else {
-                                    memo.want_later(keys[i], l.child_block, l.radius, t0);
-                                    // A proxy that sees nothing in the ray's direction skips
-                                    // the subtree.
-                                    match proxy {
-                                        Some(p) => Some(proxy_sample(&p.samples, ray))
-                                            .filter(|s| !s.is_empty())
-                                            .map(|s| (t0, Best::Proxy(s, l.radius))),
-                                        None => own(),
-                                    }
-                                };
-                                offer(&mut best, &mut best_t, i, found);
-                            }
-                        }
-                        let Some(child) = child else {
-                            break;
-                        };
-                        let root = |t: u32| {
-                            child
-                                .roots
-                                .get(t as usize)
-                                .copied()
-                                .filter(|&r| t != NONE && r != NONE)
-                                .unwrap_or(NONE)
-                        };
-                        let (left, right) = (root(l.left), root(l.right));
-                        let (first, second) = if lanes.left_first[usize::from(a.min(2))] {
-                            (left, right)
-                        } else {
-                            (right, left)
-                        };
-                        let s = at.split(lanes, go, a, split, first, second);
-                        (s, first, second, child)
-                    }
+                    } => match self.packet_lod_step(
+                        &p,
+                        &at,
+                        &mut lods,
+                        &mut lasts,
+                        &mut near,
+                        (a, split, lod),
+                    ) {
+                        Some(next) => next,
+                        None => break,
+                    },
                     NodeView::Leaf {
                         first,
                         count,
                         block,
                     } => {
-                        match memo.triangles(self.cache, block) {
-                            Some(td) => {
-                                let first = usize::from(first);
-                                let list = td.list.get(first..first + usize::from(count));
-                                let list = list.unwrap_or(&[]);
-                                let h = kernel.nearest(at.active, list, &td.positions, &mut best_t);
-                                for (i, b) in best.iter_mut().enumerate() {
-                                    if h.hit >> i & 1 != 0 {
-                                        *b = Best::Triangle {
-                                            data: td,
-                                            triangle: u32::from(h.triangle[i]),
-                                            bary: [h.bary[0][i], h.bary[1][i], h.bary[2][i]],
-                                        };
-                                    }
-                                }
-                            }
-                            None => {
-                                for (i, ray) in rays.iter().enumerate() {
-                                    if at.active >> i & 1 == 0 {
-                                        continue;
-                                    }
-                                    match lasts.last() {
-                                        Some(lv) => {
-                                            let (t, t1) = (lv.t[i], lv.t1[i]);
-                                            memo.want_later(keys[i], block, lv.radius, t);
-                                            let found =
-                                                lv.data.look(lv.lod).and_then(|(look, _)| {
-                                                    let axis = lv.axis[i] as u8;
-                                                    shown(&look, ray, t, t1, axis, lv.radius)
-                                                });
-                                            offer(&mut best, &mut best_t, i, found);
-                                        }
-                                        None => {
-                                            let t = at.t0[i];
-                                            memo.want_later(keys[i], block, f32::INFINITY, t);
-                                        }
-                                    }
-                                }
-                            }
-                        }
+                        self.packet_leaf_step(&p, &at, &lasts, &mut near, (first, count), block);
                         break;
                     }
                 };
@@ -467,26 +358,237 @@ impl Tracer<'_> {
                     None => break,
                     Some(None) => {}
                     Some(Some(far)) => {
-                        let _ = stack.try_push(Entry {
-                            data: far.data,
-                            node: far.node,
-                            lods,
-                            active: far.active,
-                            check: s.before & s.after,
-                            t0: far.t0,
-                            t1: far.t1,
-                            axis: far.axis,
-                        });
+                        let _ = stack.try_push(Entry::far(far, lods, s.before & s.after));
                     }
                 }
             }
         }
         memo.visited.set(memo.visited.get() + visited);
         let mut out = [const { None }; N];
-        for ((o, b), t) in out.iter_mut().zip(best).zip(best_t) {
+        for ((o, b), t) in out.iter_mut().zip(near.best).zip(near.best_t) {
             *o = b.hit(t);
         }
         out
+    }
+
+    /// The stack entry the packet starts from: the root treelet, for the rays that meet the
+    /// scene's box. None when no ray does, or the root block is not available (then each ray
+    /// wants it).
+    fn packet_root<'m, const N: usize>(&self, w: &Packet<'_, 'm, N>) -> Option<Entry<'m, N>> {
+        let (mut t0, mut t1, mut axis) = ([0f32; N], [0f32; N], [3u32; N]);
+        let mut live: Mask = 0;
+        for (i, ray) in w.rays.iter().enumerate() {
+            let eps = w.lanes.eps[i];
+            if let Some((a, b, ax)) = ray_box(ray, self.lo, self.hi, eps, 0.0, f32::INFINITY) {
+                (t0[i], t1[i], axis[i]) = (a, b, ax.map_or(3, |a| a as u32));
+                live |= 1 << i;
+            }
+        }
+        if live == 0 {
+            return None;
+        }
+        let (root_block, root_treelet) = self.root?;
+        let Some(root_data) = w.memo.treelets(self.cache, root_block) else {
+            for i in rays_of(live) {
+                w.memo
+                    .want_later(w.keys[i], root_block, f32::INFINITY, t0[i]);
+            }
+            return None;
+        };
+        let &root = root_data.roots.get(root_treelet as usize)?;
+        Some(Entry {
+            data: root_data,
+            node: root,
+            lods: 0,
+            active: live,
+            check: live,
+            t0,
+            t1,
+            axis,
+        })
+    }
+
+    /// The LOD step of the packet walk, at the LOD node of `at` with split `(axis, split)`
+    /// and LOD entry `lod`: the node becomes the last voxel of the path (`lasts`, `lods` of
+    /// them); the rays the LOD metric stops end on it, and all of them do when the child block
+    /// is not available, each as alone. Returns the split of the rays going on into the child
+    /// treelets, as [`At::step`] takes it; None where no ray goes on.
+    #[inline(always)]
+    fn packet_lod_step<'m, const N: usize>(
+        &self,
+        w: &Packet<'_, 'm, N>,
+        at: &At<'m, N>,
+        lods: &mut u8,
+        lasts: &mut LastsN<'m, N>,
+        near: &mut Nearest<'m, N>,
+        (a, split, lod): (u8, f32, u32),
+    ) -> Option<(Split<N>, u32, u32, &'m TreeletData)> {
+        let data = at.data;
+        let l = data.lods.get(lod as usize)?;
+        *lods = push_last(
+            lasts,
+            LastVoxels {
+                data,
+                lod,
+                radius: l.radius,
+                t: at.t0,
+                t1: at.t1,
+                axis: at.axis,
+            },
+        );
+        let mut stop: Mask = 0;
+        if self.lod_c > 0.0 {
+            for i in 0..N {
+                stop |= Mask::from(l.radius <= at.t0[i] * self.lod_c) << i;
+            }
+        }
+        stop &= at.active;
+        let go = at.active & !stop;
+        let child = if go != 0 {
+            w.memo.treelets(self.cache, l.child_block)
+        } else {
+            None
+        };
+        // The rays that end here: those that stop, and, without the child block, all of
+        // them. Without the node's look they just end.
+        let look = (stop != 0 || child.is_none()).then(|| data.look(lod));
+        if let Some(Some((look, proxy))) = look {
+            let proxy = proxy.and_then(|p| self.proxies.get(p as usize));
+            let ends = if child.is_some() { stop } else { at.active };
+            for (i, ray) in w.rays.iter().enumerate() {
+                if ends >> i & 1 == 0 {
+                    continue;
+                }
+                let (t0, t1, axis) = (at.t0[i], at.t1[i], at.axis[i] as u8);
+                let own = || shown(&look, ray, t0, t1, axis, l.radius);
+                let found = if stop >> i & 1 != 0 {
+                    own()
+                } else {
+                    w.memo.want_later(w.keys[i], l.child_block, l.radius, t0);
+                    // A proxy that sees nothing in the ray's direction skips the subtree.
+                    match proxy {
+                        Some(p) => Some(proxy_sample(&p.samples, ray))
+                            .filter(|s| !s.is_empty())
+                            .map(|s| (t0, Best::Proxy(s, l.radius))),
+                        None => own(),
+                    }
+                };
+                near.offer(i, found);
+            }
+        }
+        let child = child?;
+        let root = |t: u32| {
+            child
+                .roots
+                .get(t as usize)
+                .copied()
+                .filter(|&r| t != NONE && r != NONE)
+                .unwrap_or(NONE)
+        };
+        let (left, right) = (root(l.left), root(l.right));
+        let (first, second) = w.lanes.in_order(a, left, right);
+        let s = at.split(w.lanes, go, a, split, first, second);
+        Some((s, first, second, child))
+    }
+
+    /// The leaf step of the packet walk, at a leaf of `(first, count)` list entries in
+    /// triangle block `block`: each active ray's nearest of its triangles, all tested at once,
+    /// or, when the block is not available, each ray's last voxel on the path (`lasts`; the
+    /// block is wanted either way).
+    #[inline(always)]
+    fn packet_leaf_step<'m, const N: usize>(
+        &self,
+        w: &Packet<'_, 'm, N>,
+        at: &At<'m, N>,
+        lasts: &LastsN<'m, N>,
+        near: &mut Nearest<'m, N>,
+        (first, count): (u16, u16),
+        block: u32,
+    ) {
+        match w.memo.triangles(self.cache, block) {
+            Some(td) => {
+                let first = usize::from(first);
+                let list = td.list.get(first..first + usize::from(count));
+                let list = list.unwrap_or(&[]);
+                let h = w
+                    .kernel
+                    .nearest(at.active, list, &td.positions, &mut near.best_t);
+                for (i, b) in near.best.iter_mut().enumerate() {
+                    if h.hit >> i & 1 != 0 {
+                        *b = Best::Triangle {
+                            data: td,
+                            triangle: u32::from(h.triangle[i]),
+                            bary: [h.bary[0][i], h.bary[1][i], h.bary[2][i]],
+                        };
+                    }
+                }
+            }
+            None => {
+                for (i, ray) in w.rays.iter().enumerate() {
+                    if at.active >> i & 1 == 0 {
+                        continue;
+                    }
+                    match lasts.last() {
+                        Some(lv) => {
+                            let (t, t1) = (lv.t[i], lv.t1[i]);
+                            w.memo.want_later(w.keys[i], block, lv.radius, t);
+                            let found = lv.data.look(lv.lod).and_then(|(look, _)| {
+                                let axis = lv.axis[i] as u8;
+                                shown(&look, ray, t, t1, axis, lv.radius)
+                            });
+                            near.offer(i, found);
+                        }
+                        None => {
+                            let t = at.t0[i];
+                            w.memo.want_later(w.keys[i], block, f32::INFINITY, t);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// What the steps of a packet's walk read: its rays, their keys and lanes, the leaf kernel,
+/// and the memo.
+struct Packet<'r, 'm, const N: usize> {
+    rays: &'r [Ray; N],
+    keys: &'r [u32; N],
+    lanes: &'r Lanes<N>,
+    kernel: &'r RayLanes<N>,
+    memo: &'m Memo,
+}
+
+/// The LOD nodes on the packet's path, outermost first.
+type LastsN<'m, const N: usize> = ArrayVec<LastVoxels<'m, N>, { MAX_TREE_DEPTH as usize }>;
+
+/// Each ray's nearest surface so far, at `best_t`. Kept apart from the rest of the walk's
+/// state: the leaf kernel writes `best_t` through a pointer, and a struct holding the rays'
+/// references too would then be read back from memory after every leaf.
+struct Nearest<'m, const N: usize> {
+    best: [Best<'m>; N],
+    best_t: [f32; N],
+}
+
+impl<'m, const N: usize> Nearest<'m, N> {
+    fn new() -> Nearest<'m, N> {
+        Nearest {
+            best: [Best::None; N],
+            best_t: [f32::INFINITY; N],
+        }
+    }
+
+    /// Ray `i`, which found `found` on the current path, keeps it when it is nearer.
+    #[inline(always)]
+    fn offer(&mut self, i: usize, found: Option<(f32, Best<'m>)>) {
+        if let (Some((t, s)), Some(bt), Some(b)) =
+            (found, self.best_t.get_mut(i), self.best.get_mut(i))
+        {
+            if t < *bt {
+                *bt = t;
+                *b = s;
+            }
+        }
     }
 }
 

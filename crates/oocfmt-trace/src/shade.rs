@@ -137,14 +137,13 @@ impl<'a> Lighting<'a> {
             return shade(hit, ray, self.materials);
         }
         let (albedo, normal) = attributes(hit, self.materials);
-        let (g, n) = self.normals(hit, ray, normal);
-        let from = Origin::of(hit, ray, self.scale);
-        let direct = self.direct_from(hit, ray, &from, g, n, memo, counts);
+        let at = self.point(hit, ray, normal);
+        let direct = self.direct_from(hit, ray, &at, memo, counts);
         let (ambient, open) = match &self.occlusion {
             None => (AMBIENT, 1.0),
             Some(o) => {
                 counts.ao += u64::from(o.rays());
-                (AO_AMBIENT, o.open(&from, g, seed, memo))
+                (AO_AMBIENT, o.open(&at.from, at.g, seed, memo))
             }
         };
         let light = ambient * open + (1.0 - ambient) * direct;
@@ -156,9 +155,18 @@ impl<'a> Lighting<'a> {
     /// behind the surface as the viewer sees it).
     pub fn direct(&self, hit: &Hit, ray: &Ray, memo: &mut Memo, counts: &mut Secondary) -> f32 {
         let (_, normal) = attributes(hit, self.materials);
+        let at = self.point(hit, ray, normal);
+        self.direct_from(hit, ray, &at, memo, counts)
+    }
+
+    /// Where `hit` (with shading normal `normal`) is shaded from.
+    fn point(&self, hit: &Hit, ray: &Ray, normal: [f32; 3]) -> ShadingPoint {
         let (g, n) = self.normals(hit, ray, normal);
-        let from = Origin::of(hit, ray, self.scale);
-        self.direct_from(hit, ray, &from, g, n, memo, counts)
+        ShadingPoint {
+            from: Origin::of(hit, ray, self.scale),
+            g,
+            n,
+        }
     }
 
     /// The geometric and the shading unit normals, both turned towards the viewer.
@@ -176,17 +184,17 @@ impl<'a> Lighting<'a> {
         (g, unit(normal).map_or(g, |n| facing(n, ray.dir)))
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// [`Lighting::direct`] from the shading point `at` of `hit`.
     fn direct_from(
         &self,
         hit: &Hit,
         ray: &Ray,
-        from: &Origin,
-        g: [f32; 3],
-        n: [f32; 3],
+        at: &ShadingPoint,
         memo: &mut Memo,
         counts: &mut Secondary,
     ) -> f32 {
+        let ShadingPoint { from, g, n } = at;
+        let (g, n) = (*g, *n);
         let Some(s) = &self.shadows else {
             return dot(n, ray.dir.map(|c| -c)).clamp(0.0, 1.0);
         };
@@ -205,6 +213,14 @@ impl<'a> Lighting<'a> {
             _ => 0.0,
         }
     }
+}
+
+/// Where a hit is shaded from: the origin of its secondary rays, and its geometric and shading
+/// unit normals, both turned towards the viewer.
+struct ShadingPoint {
+    from: Origin,
+    g: [f32; 3],
+    n: [f32; 3],
 }
 
 /// `n` turned to face against `dir` (towards the viewer).

@@ -24,6 +24,7 @@
 //!   the split plane: it visits the side its origin lies on, both sides when the origin lies on
 //!   the plane. No 0 × inf product is formed.
 
+use std::ops::ControlFlow;
 use std::sync::Arc;
 
 use arrayvec::ArrayVec;
@@ -147,6 +148,29 @@ struct Entry<'m> {
 /// The LOD nodes on the path to the node being visited, outermost first.
 type Lasts<'m> = ArrayVec<LastVoxel<'m>, { MAX_TREE_DEPTH as usize }>;
 
+/// One ray's walk through the tree: the ray and its tolerance, the subtrees waiting, the LOD
+/// nodes on the path, and the nearest surface found so far (at `best_t`).
+struct Walk<'r, 'm> {
+    ray: &'r Ray,
+    memo: &'m Memo,
+    eps: f32,
+    stack: ArrayVec<Entry<'m>, { MAX_TREE_DEPTH as usize }>,
+    lasts: Lasts<'m>,
+    best: Best<'m>,
+    best_t: f32,
+}
+
+impl<'m> Walk<'_, 'm> {
+    /// Keeps `found` when it is nearer than the nearest surface so far.
+    #[inline(always)]
+    fn offer(&mut self, found: Option<(f32, Best<'m>)>) {
+        if let Some((t, s)) = found.filter(|&(t, _)| t < self.best_t) {
+            self.best_t = t;
+            self.best = s;
+        }
+    }
+}
+
 /// Makes `lv` the last voxel of the path (dropping the outermost when a corrupt tree is deeper
 /// than any path can be) and returns the count to store in entries below it.
 pub(crate) fn push_last<T, const CAP: usize>(lasts: &mut ArrayVec<T, CAP>, lv: T) -> u8 {
@@ -213,6 +237,80 @@ fn ordered(
     }
 }
 
+/// The inner-node step of [`Tracer::trace_to`] for a ray parallel to the split plane of axis
+/// `a` at `split` (see [`split_sides`]): `at` moves to the near child of `[left, right]`, the
+/// far one is stacked. Breaks where no child is visited.
+#[inline(always)]
+fn parallel_step<'m>(
+    w: &mut Walk<'_, 'm>,
+    at: &mut Entry<'m>,
+    (a, split): (u8, f32),
+    [left, right]: [u32; 2],
+) -> ControlFlow<()> {
+    let sides = split_sides(w.ray, a, split, at.t0, at.t1, at.axis, w.eps);
+    let child = |is_left| {
+        let c = if is_left { left } else { right };
+        (c != NONE).then_some(c)
+    };
+    let Some((near, far)) = ordered(sides, child) else {
+        return ControlFlow::Break(());
+    };
+    if let Some((fc, f0, f1, fax)) = far {
+        let _ = w.stack.try_push(Entry {
+            node: fc,
+            t0: f0,
+            t1: f1,
+            axis: fax,
+            ..*at
+        });
+    }
+    (at.node, at.t0, at.t1, at.axis) = near;
+    ControlFlow::Continue(())
+}
+
+/// The inner-node step of [`Tracer::trace_to`] for a ray that crosses the split plane of axis
+/// `a` at `split`: [`split_sides`] and [`ordered`] written out, as this is most of the work of
+/// a ray. `at` moves to the near child of `[left, right]` that the ray visits, the far one is
+/// stacked when the ray visits both. Breaks where it visits neither.
+#[inline(always)]
+fn crossing_step<'m>(
+    w: &mut Walk<'_, 'm>,
+    at: &mut Entry<'m>,
+    axes: &Axes,
+    (a, split): (u8, f32),
+    [left, right]: [u32; 2],
+) -> ControlFlow<()> {
+    let k = usize::from(a.min(2));
+    let ts = (split - axes.org[k]) * axes.inv[k];
+    let tol = axes.tol[k];
+    let (first, second) = if axes.left_first[k] {
+        (left, right)
+    } else {
+        (right, left)
+    };
+    let before = ts + tol >= at.t0 && first != NONE;
+    let after = ts - tol <= at.t1 && second != NONE;
+    let mid = clamp_mid(ts, at.t0, at.t1);
+    match (before, after) {
+        (true, true) => {
+            let _ = w.stack.try_push(Entry {
+                node: second,
+                t0: mid,
+                axis: if ts >= at.t0 { a } else { at.axis },
+                ..*at
+            });
+            (at.node, at.t1) = (first, mid);
+        }
+        (true, false) => (at.node, at.t1) = (first, mid),
+        (false, true) => {
+            at.axis = if ts >= at.t0 { a } else { at.axis };
+            (at.node, at.t0) = (second, mid);
+        }
+        (false, false) => return ControlFlow::Break(()),
+    }
+    ControlFlow::Continue(())
+}
+
 /// What the split decisions of one ray read per axis, worked out once per ray rather than at
 /// every inner node.
 struct Axes {
@@ -268,7 +366,6 @@ impl<'a> Tracer<'a> {
     /// Where the ray first meets the scene closer than `t_max` (exclusive), or None: a shadow
     /// ray towards a light at distance `t_max` is occluded when this returns a hit.
     pub fn trace_to(&self, ray: &Ray, t_max: f32, memo: &Memo) -> Option<Hit> {
-        let mut stack = ArrayVec::<Entry<'_>, { MAX_TREE_DEPTH as usize }>::new();
         let eps = self.ray_eps(ray);
         let t_max = if t_max.is_nan() { f32::INFINITY } else { t_max };
         let (t0, t1, axis) = ray_box(ray, self.lo, self.hi, eps, 0.0, t_max)?;
@@ -277,7 +374,16 @@ impl<'a> Tracer<'a> {
             memo.want(root_block, f32::INFINITY, t0);
             return None;
         };
-        stack.push(Entry {
+        let mut w = Walk {
+            ray,
+            memo,
+            eps,
+            stack: ArrayVec::new(),
+            lasts: Lasts::new(),
+            best: Best::None,
+            best_t: t_max,
+        };
+        w.stack.push(Entry {
             data: root_data,
             node: *root_data.roots.get(root_treelet as usize)?,
             t0,
@@ -285,25 +391,14 @@ impl<'a> Tracer<'a> {
             axis: axis.map_or(3, |a| a as u8),
             lods: 0,
         });
-        let mut lasts = Lasts::new();
         let axes = Axes::new(ray, eps);
-        let mut best = Best::None;
-        let mut best_t = t_max;
         let mut visited = 0u64;
-        'ray: while let Some(e) = stack.pop() {
-            if e.t0 > best_t + eps {
+        'ray: while let Some(mut at) = w.stack.pop() {
+            if at.t0 > w.best_t + eps {
                 continue;
             }
-            let Entry {
-                mut data,
-                mut node,
-                mut t0,
-                mut t1,
-                mut axis,
-                mut lods,
-            } = e;
-            lasts.truncate(usize::from(lods));
-            while let Some(n) = data.node(node) {
+            w.lasts.truncate(usize::from(at.lods));
+            while let Some(n) = at.data.node(at.node) {
                 visited += 1;
                 // Each node of a tree has one parent, so a ray meets it once at most; past
                 // that, treelets are shared and the paths may be too many to walk (spec §12).
@@ -317,59 +412,14 @@ impl<'a> Tracer<'a> {
                         left,
                         right,
                     } => {
-                        let k = usize::from(a.min(2));
-                        if axes.parallel[k] {
-                            let sides = split_sides(ray, a, split, t0, t1, axis, eps);
-                            let child = |is_left| {
-                                let c = if is_left { left } else { right };
-                                (c != NONE).then_some(c)
-                            };
-                            let Some((near, far)) = ordered(sides, child) else {
-                                break;
-                            };
-                            if let Some((fc, f0, f1, fax)) = far {
-                                let _ = stack.try_push(Entry {
-                                    data,
-                                    node: fc,
-                                    t0: f0,
-                                    t1: f1,
-                                    axis: fax,
-                                    lods,
-                                });
-                            }
-                            (node, t0, t1, axis) = near;
-                            continue;
-                        }
-                        // `split_sides` and `ordered` for a ray that crosses the plane, written
-                        // out: this is most of the work of a ray.
-                        let ts = (split - axes.org[k]) * axes.inv[k];
-                        let tol = axes.tol[k];
-                        let (first, second) = if axes.left_first[k] {
-                            (left, right)
+                        let children = [left, right];
+                        let step = if axes.parallel[usize::from(a.min(2))] {
+                            parallel_step(&mut w, &mut at, (a, split), children)
                         } else {
-                            (right, left)
+                            crossing_step(&mut w, &mut at, &axes, (a, split), children)
                         };
-                        let before = ts + tol >= t0 && first != NONE;
-                        let after = ts - tol <= t1 && second != NONE;
-                        let mid = clamp_mid(ts, t0, t1);
-                        match (before, after) {
-                            (true, true) => {
-                                let _ = stack.try_push(Entry {
-                                    data,
-                                    node: second,
-                                    t0: mid,
-                                    t1,
-                                    axis: if ts >= t0 { a } else { axis },
-                                    lods,
-                                });
-                                (node, t1) = (first, mid);
-                            }
-                            (true, false) => (node, t1) = (first, mid),
-                            (false, true) => {
-                                axis = if ts >= t0 { a } else { axis };
-                                (node, t0) = (second, mid);
-                            }
-                            (false, false) => break,
+                        if step.is_break() {
+                            break;
                         }
                     }
                     NodeView::Lod {
@@ -377,110 +427,132 @@ impl<'a> Tracer<'a> {
                         split,
                         lod,
                     } => {
-                        let Some(l) = data.lods.get(lod as usize) else {
+                        if self.lod_step(&mut w, &mut at, (a, split), lod).is_break() {
                             break;
-                        };
-                        lods = push_last(
-                            &mut lasts,
-                            LastVoxel {
-                                data,
-                                lod,
-                                radius: l.radius,
-                                t: t0,
-                                t1,
-                                axis,
-                            },
-                        );
-                        let stop = self.lod_c > 0.0 && l.radius <= t0 * self.lod_c;
-                        let child = if stop {
-                            None
-                        } else {
-                            memo.treelets(self.cache, l.child_block)
-                        };
-                        let Some(child) = child else {
-                            let Some((look, proxy)) = data.look(lod) else {
-                                break;
-                            };
-                            let own = || shown(&look, ray, t0, t1, axis, l.radius);
-                            let found = if stop {
-                                own()
-                            } else {
-                                memo.want(l.child_block, l.radius, t0);
-                                // A proxy that sees nothing in the ray's direction skips the
-                                // subtree.
-                                match proxy.and_then(|p| self.proxies.get(p as usize)) {
-                                    Some(p) => Some(proxy_sample(&p.samples, ray))
-                                        .filter(|s| !s.is_empty())
-                                        .map(|s| (t0, Best::Proxy(s, l.radius))),
-                                    None => own(),
-                                }
-                            };
-                            if let Some((t, s)) = found.filter(|&(t, _)| t < best_t) {
-                                best_t = t;
-                                best = s;
-                            }
-                            break;
-                        };
-                        let sides = split_sides(ray, a, split, t0, t1, axis, eps);
-                        let root = |is_left| {
-                            let t = if is_left { l.left } else { l.right };
-                            let root = *child.roots.get(t as usize)?;
-                            (t != NONE && root != NONE).then_some(root)
-                        };
-                        let Some((near, far)) = ordered(sides, root) else {
-                            break;
-                        };
-                        if let Some((fc, f0, f1, fax)) = far {
-                            let _ = stack.try_push(Entry {
-                                data: child,
-                                node: fc,
-                                t0: f0,
-                                t1: f1,
-                                axis: fax,
-                                lods,
-                            });
                         }
-                        data = child;
-                        (node, t0, t1, axis) = near;
                     }
                     NodeView::Leaf {
                         first,
                         count,
                         block,
                     } => {
-                        match memo.triangles(self.cache, block) {
-                            Some(td) => {
-                                let first = usize::from(first);
-                                let list = td.list.get(first..first + usize::from(count));
-                                let list = list.unwrap_or(&[]);
-                                if let Some((ti, h)) = ray.nearest(list, &td.positions, best_t) {
-                                    best_t = h.t;
-                                    best = Best::Triangle {
-                                        data: td,
-                                        triangle: u32::from(ti),
-                                        bary: h.bary,
-                                    };
-                                }
-                            }
-                            None => match lasts.last() {
-                                Some(lv) => {
-                                    memo.want(block, lv.radius, lv.t);
-                                    if let Some((t, s)) = lv.shown(ray).filter(|&(t, _)| t < best_t)
-                                    {
-                                        best_t = t;
-                                        best = s;
-                                    }
-                                }
-                                None => memo.want(block, f32::INFINITY, t0),
-                            },
-                        }
+                        self.leaf_step(&mut w, at.t0, (first, count), block);
                         break;
                     }
                 }
             }
         }
         memo.visited.set(memo.visited.get() + visited);
-        best.hit(best_t)
+        w.best.hit(w.best_t)
+    }
+
+    /// The LOD step of [`Tracer::trace_to`], at the LOD node of `at` with split `(axis,
+    /// split)` and LOD entry `lod`: the node becomes the path's last voxel; the ray stops on
+    /// it when the LOD metric says so, ends on its proxy, voxel or plane when the child block
+    /// is not available, and otherwise goes on into the child treelets (`at` moves to the near
+    /// one, the far one is stacked). Breaks where the path ends.
+    #[inline(always)]
+    fn lod_step<'m>(
+        &self,
+        w: &mut Walk<'_, 'm>,
+        at: &mut Entry<'m>,
+        (a, split): (u8, f32),
+        lod: u32,
+    ) -> ControlFlow<()> {
+        let (data, ray) = (at.data, w.ray);
+        let Some(l) = data.lods.get(lod as usize) else {
+            return ControlFlow::Break(());
+        };
+        at.lods = push_last(
+            &mut w.lasts,
+            LastVoxel {
+                data,
+                lod,
+                radius: l.radius,
+                t: at.t0,
+                t1: at.t1,
+                axis: at.axis,
+            },
+        );
+        let stop = self.lod_c > 0.0 && l.radius <= at.t0 * self.lod_c;
+        let child = if stop {
+            None
+        } else {
+            w.memo.treelets(self.cache, l.child_block)
+        };
+        let Some(child) = child else {
+            let Some((look, proxy)) = data.look(lod) else {
+                return ControlFlow::Break(());
+            };
+            let (t0, t1, axis) = (at.t0, at.t1, at.axis);
+            let own = || shown(&look, ray, t0, t1, axis, l.radius);
+            let found = if stop {
+                own()
+            } else {
+                w.memo.want(l.child_block, l.radius, t0);
+                // A proxy that sees nothing in the ray's direction skips the subtree.
+                match proxy.and_then(|p| self.proxies.get(p as usize)) {
+                    Some(p) => Some(proxy_sample(&p.samples, ray))
+                        .filter(|s| !s.is_empty())
+                        .map(|s| (t0, Best::Proxy(s, l.radius))),
+                    None => own(),
+                }
+            };
+            w.offer(found);
+            return ControlFlow::Break(());
+        };
+        let sides = split_sides(ray, a, split, at.t0, at.t1, at.axis, w.eps);
+        let root = |is_left| {
+            let t = if is_left { l.left } else { l.right };
+            let root = *child.roots.get(t as usize)?;
+            (t != NONE && root != NONE).then_some(root)
+        };
+        let Some((near, far)) = ordered(sides, root) else {
+            return ControlFlow::Break(());
+        };
+        if let Some((fc, f0, f1, fax)) = far {
+            let _ = w.stack.try_push(Entry {
+                data: child,
+                node: fc,
+                t0: f0,
+                t1: f1,
+                axis: fax,
+                lods: at.lods,
+            });
+        }
+        at.data = child;
+        (at.node, at.t0, at.t1, at.axis) = near;
+        ControlFlow::Continue(())
+    }
+
+    /// The leaf step of [`Tracer::trace_to`], at a leaf of `(first, count)` list entries in
+    /// triangle block `block`, entered at `t0`: the nearest of its triangles, or, when the
+    /// block is not available, the path's last voxel (the block is wanted either way).
+    #[inline(always)]
+    fn leaf_step(&self, w: &mut Walk<'_, '_>, t0: f32, (first, count): (u16, u16), block: u32) {
+        match w.memo.triangles(self.cache, block) {
+            Some(td) => {
+                let first = usize::from(first);
+                let list = td.list.get(first..first + usize::from(count));
+                let list = list.unwrap_or(&[]);
+                if let Some((ti, h)) = w.ray.nearest(list, &td.positions, w.best_t) {
+                    w.best_t = h.t;
+                    w.best = Best::Triangle {
+                        data: td,
+                        triangle: u32::from(ti),
+                        bary: h.bary,
+                    };
+                }
+            }
+            None => match w.lasts.last() {
+                Some(lv) => {
+                    w.memo.want(block, lv.radius, lv.t);
+                    let found = lv.shown(w.ray);
+                    w.offer(found);
+                }
+                None => w.memo.want(block, f32::INFINITY, t0),
+            },
+        }
     }
 
     /// The positional tolerance of a ray's split decisions: the scene's, or some ulps of the

@@ -63,178 +63,33 @@ fn triangle_ids(mesh: &Mesh) -> HashMap<[[u32; 3]; 3], Vec<usize>> {
 fn read_back(path: &Path, mesh: &Mesh) -> Res<Found> {
     let reader = Reader::open(path, ReadOptions::default()).map_err(s)?;
     let meta = reader.metadata().clone();
-    let attrs = meta.schema.triangle_attributes();
-    let ids = triangle_ids(mesh);
-    let lookup = |pos: [[f32; 3]; 3]| -> Res<usize> {
-        ids.get(&pos.map(|p| p.map(f32::to_bits)))
-            .and_then(|v| v.first().copied())
-            .ok_or_else(|| format!("stored triangle {pos:?} is not in the mesh"))
+    let mut r = ReadBack {
+        reader: &reader,
+        attrs: meta.schema.triangle_attributes(),
+        ids: triangle_ids(mesh),
+        found: Found {
+            meta: meta.clone(),
+            ..Found::default()
+        },
     };
-    let mut found = Found {
-        meta: meta.clone(),
-        ..Found::default()
-    };
-    let mut blocks = Vec::new();
-    let mut sums = Counts::default();
-    let mut six = false;
-    let mut last_kind = BlockKind::Treelet;
-    for id in 0..reader.entries().len() as u32 {
-        let block = reader.read_block(id).map_err(s)?;
-        if block.entry.kind < last_kind {
-            return Err(format!(
-                "block {id}: a {:?} block after a {last_kind:?} block",
-                block.entry.kind
-            ));
-        }
-        last_kind = block.entry.kind;
-        if block.entry.codec != oocfmt::CodecId::None {
-            found.compressed_blocks += 1;
-        }
-        match block.entry.kind {
-            BlockKind::Treelet => {
-                found.treelet_blocks += 1;
-                let t = block.treelets().map_err(s)?;
-                let sum = t
-                    .walk(|_, _, n| {
-                        if let Node::Lod { voxel_offset, .. } = n {
-                            six |= matches!(t.voxel(*voxel_offset), Ok(Voxel::Six(_)));
-                        }
-                        Ok(())
-                    })
-                    .map_err(s)?;
-                sums.treelets += sum.treelets;
-                sums.basic_nodes += sum.basic_nodes;
-                sums.lod_nodes += sum.lod_nodes;
-                sums.leaves += sum.leaves;
-                sums.voxels_single += sum.voxels_single;
-                sums.voxels_six += sum.voxels_six;
-            }
-            BlockKind::Triangle => {
-                found.triangle_blocks += 1;
-                let t = block.triangles(attrs).map_err(s)?;
-                t.check_contents().map_err(s)?;
-                sums.triangles += t.primary_count() as u64;
-                sums.triangle_records += t.triangle_count() as u64;
-                sums.vertices += t.vertex_count() as u64;
-                for i in 0..t.primary_count() {
-                    found.primaries.push(lookup(t.positions(i).map_err(s)?)?);
-                }
-                if let Some(m) = (0..t.triangle_count())
-                    .filter_map(|i| t.triangle(i).ok()?.material)
-                    .find(|&m| usize::from(m) >= meta.materials.len())
-                {
-                    return Err(format!("material {m} out of range"));
-                }
-            }
-            BlockKind::Proxy => {
-                found.proxy_blocks += 1;
-                sums.proxies += block.proxies().map_err(s)?.len() as u64;
-            }
-        }
-        blocks.push(block);
-    }
+    let (blocks, mut sums, six) = r.decode_blocks()?;
     if sums.proxies != reader.proxies().len() as u64 {
         return Err("the reader's resident proxies differ from the proxy blocks".into());
     }
-
-    // Walk the tree: every treelet once, LOD children one level down and side by side.
-    let mut seen_treelets = HashSet::new();
-    let mut depth = 0u32;
-    let mut levels = 0u32;
-    let mut max_proxied_level = 0u32;
-    let mut min_unproxied_level = u32::MAX;
-    let mut stack: Vec<(u32, u32, u32)> =
-        meta.root.iter().map(|r| (r.block, r.treelet, 1)).collect();
-    while let Some((b, t, d0)) = stack.pop() {
-        if !seen_treelets.insert((b, t)) {
-            return Err(format!("treelet {b}/{t} reached twice"));
-        }
-        let block = blocks.get(b as usize).ok_or("child block out of range")?;
-        levels = levels.max(u32::from(block.entry.level) + 1);
-        let tb = block.treelets().map_err(s)?;
-        let span = tb.treelet_span(t as usize).map_err(s)?;
-        let mut nodes = vec![(span.start, d0)];
-        while let Some((pos, d)) = nodes.pop() {
-            depth = depth.max(d);
-            match tb.node(pos).map_err(s)? {
-                Node::Basic { left, right, .. } => {
-                    for u in [left, right].into_iter().filter(|&u| u != 0) {
-                        nodes.push((TreeletBlock::child_pos(pos, u), d + 1));
-                    }
-                }
-                Node::Lod {
-                    left_present,
-                    right_present,
-                    child_treelet,
-                    child_block,
-                    proxy,
-                    ..
-                } => {
-                    let child = blocks
-                        .get(child_block as usize)
-                        .ok_or("LOD child block out of range")?;
-                    if child.entry.kind != BlockKind::Treelet
-                        || child.entry.level != block.entry.level + 1
-                    {
-                        return Err(format!("LOD node in block {b} (level {}) points at block {child_block} of level {}", block.entry.level, child.entry.level));
-                    }
-                    let n = u32::from(left_present) + u32::from(right_present);
-                    if child_treelet + n > child.entry.item_count {
-                        return Err("LOD child treelets out of range".into());
-                    }
-                    for k in 0..n {
-                        stack.push((child_block, child_treelet + k, d + 1));
-                    }
-                    // Proxies go to the coarsest LOD nodes first: no level may have a proxy
-                    // finer than a level with a node without one (checked after the walk).
-                    let level = u32::from(block.entry.level);
-                    if proxy == NO_PROXY {
-                        min_unproxied_level = min_unproxied_level.min(level);
-                        continue;
-                    }
-                    max_proxied_level = max_proxied_level.max(level);
-                    let p = reader
-                        .proxies()
-                        .get(proxy as usize)
-                        .ok_or("LOD node with an out-of-range proxy")?;
-                    if p.node_block != b {
-                        return Err(format!(
-                            "proxy {proxy} names block {}, its node is in block {b}",
-                            p.node_block
-                        ));
-                    }
-                }
-                Node::Leaf {
-                    count,
-                    first,
-                    block: tri_block,
-                } => {
-                    let tblock = blocks
-                        .get(tri_block as usize)
-                        .ok_or("leaf block out of range")?;
-                    let tris = tblock.triangles(attrs).map_err(s)?;
-                    for e in usize::from(first)..usize::from(first) + usize::from(count) {
-                        let local = tris.list(e).map_err(s)?;
-                        found
-                            .reached
-                            .insert(lookup(tris.positions(usize::from(local)).map_err(s)?)?);
-                    }
-                }
-            }
-        }
-    }
-    sums.depth = depth;
-    sums.lod_levels = levels;
+    let walked = r.walk_tree(&blocks)?;
+    sums.depth = walked.depth;
+    sums.lod_levels = walked.levels;
+    let (max_proxied_level, min_unproxied_level) =
+        (walked.max_proxied_level, walked.min_unproxied_level);
     if min_unproxied_level != u32::MAX && max_proxied_level > min_unproxied_level {
         return Err(format!(
             "a proxy at level {max_proxied_level}, a LOD node without one at level {min_unproxied_level}"
         ));
     }
-    if seen_treelets.len() as u64 != sums.treelets {
+    if walked.treelets as u64 != sums.treelets {
         return Err(format!(
             "{} of {} treelets reachable",
-            seen_treelets.len(),
-            sums.treelets
+            walked.treelets, sums.treelets
         ));
     }
     if sums != meta.counts {
@@ -246,8 +101,201 @@ fn read_back(path: &Path, mesh: &Mesh) -> Res<Found> {
     if six != meta.schema.six_sample_voxels {
         return Err("six_sample_voxels flag disagrees with the voxels".into());
     }
+    let mut found = r.found;
     found.meta = meta;
     Ok(found)
+}
+
+/// A container being read back, and what was found in it so far.
+struct ReadBack<'a> {
+    reader: &'a Reader,
+    attrs: u16,
+    ids: HashMap<[[u32; 3]; 3], Vec<usize>>,
+    found: Found,
+}
+
+/// What the walk from the root found: the treelets reached, the deepest node level, the LOD
+/// levels, and the finest level with a proxy and the coarsest with a LOD node without one.
+struct Walked {
+    treelets: usize,
+    depth: u32,
+    levels: u32,
+    max_proxied_level: u32,
+    min_unproxied_level: u32,
+}
+
+impl ReadBack<'_> {
+    /// The mesh triangle stored with corners `pos`.
+    fn lookup(&self, pos: [[f32; 3]; 3]) -> Res<usize> {
+        self.ids
+            .get(&pos.map(|p| p.map(f32::to_bits)))
+            .and_then(|v| v.first().copied())
+            .ok_or_else(|| format!("stored triangle {pos:?} is not in the mesh"))
+    }
+
+    /// Decodes every block in file order, checking the order of kinds: returns them with what
+    /// their records add up to, and whether some voxel has six samples.
+    fn decode_blocks(&mut self) -> Res<(Vec<oocfmt::Block>, Counts, bool)> {
+        let (reader, attrs) = (self.reader, self.attrs);
+        let mut blocks = Vec::new();
+        let mut sums = Counts::default();
+        let mut six = false;
+        let mut last_kind = BlockKind::Treelet;
+        for id in 0..reader.entries().len() as u32 {
+            let block = reader.read_block(id).map_err(s)?;
+            if block.entry.kind < last_kind {
+                return Err(format!(
+                    "block {id}: a {:?} block after a {last_kind:?} block",
+                    block.entry.kind
+                ));
+            }
+            last_kind = block.entry.kind;
+            if block.entry.codec != oocfmt::CodecId::None {
+                self.found.compressed_blocks += 1;
+            }
+            match block.entry.kind {
+                BlockKind::Treelet => {
+                    self.found.treelet_blocks += 1;
+                    let t = block.treelets().map_err(s)?;
+                    let sum = t
+                        .walk(|_, _, n| {
+                            if let Node::Lod { voxel_offset, .. } = n {
+                                six |= matches!(t.voxel(*voxel_offset), Ok(Voxel::Six(_)));
+                            }
+                            Ok(())
+                        })
+                        .map_err(s)?;
+                    sums.treelets += sum.treelets;
+                    sums.basic_nodes += sum.basic_nodes;
+                    sums.lod_nodes += sum.lod_nodes;
+                    sums.leaves += sum.leaves;
+                    sums.voxels_single += sum.voxels_single;
+                    sums.voxels_six += sum.voxels_six;
+                }
+                BlockKind::Triangle => {
+                    self.found.triangle_blocks += 1;
+                    let t = block.triangles(attrs).map_err(s)?;
+                    t.check_contents().map_err(s)?;
+                    sums.triangles += t.primary_count() as u64;
+                    sums.triangle_records += t.triangle_count() as u64;
+                    sums.vertices += t.vertex_count() as u64;
+                    for i in 0..t.primary_count() {
+                        let m = self.lookup(t.positions(i).map_err(s)?)?;
+                        self.found.primaries.push(m);
+                    }
+                    if let Some(m) = (0..t.triangle_count())
+                        .filter_map(|i| t.triangle(i).ok()?.material)
+                        .find(|&m| usize::from(m) >= self.found.meta.materials.len())
+                    {
+                        return Err(format!("material {m} out of range"));
+                    }
+                }
+                BlockKind::Proxy => {
+                    self.found.proxy_blocks += 1;
+                    sums.proxies += block.proxies().map_err(s)?.len() as u64;
+                }
+            }
+            blocks.push(block);
+        }
+        Ok((blocks, sums, six))
+    }
+
+    /// Walks the tree: every treelet once, LOD children one level down and side by side.
+    fn walk_tree(&mut self, blocks: &[oocfmt::Block]) -> Res<Walked> {
+        let (reader, attrs) = (self.reader, self.attrs);
+        let mut seen_treelets = HashSet::new();
+        let mut depth = 0u32;
+        let mut levels = 0u32;
+        let mut max_proxied_level = 0u32;
+        let mut min_unproxied_level = u32::MAX;
+        let root = self.found.meta.root.iter();
+        let mut stack: Vec<(u32, u32, u32)> = root.map(|r| (r.block, r.treelet, 1)).collect();
+        while let Some((b, t, d0)) = stack.pop() {
+            if !seen_treelets.insert((b, t)) {
+                return Err(format!("treelet {b}/{t} reached twice"));
+            }
+            let block = blocks.get(b as usize).ok_or("child block out of range")?;
+            levels = levels.max(u32::from(block.entry.level) + 1);
+            let tb = block.treelets().map_err(s)?;
+            let span = tb.treelet_span(t as usize).map_err(s)?;
+            let mut nodes = vec![(span.start, d0)];
+            while let Some((pos, d)) = nodes.pop() {
+                depth = depth.max(d);
+                match tb.node(pos).map_err(s)? {
+                    Node::Basic { left, right, .. } => {
+                        for u in [left, right].into_iter().filter(|&u| u != 0) {
+                            nodes.push((TreeletBlock::child_pos(pos, u), d + 1));
+                        }
+                    }
+                    Node::Lod {
+                        left_present,
+                        right_present,
+                        child_treelet,
+                        child_block,
+                        proxy,
+                        ..
+                    } => {
+                        let child = blocks
+                            .get(child_block as usize)
+                            .ok_or("LOD child block out of range")?;
+                        if child.entry.kind != BlockKind::Treelet
+                            || child.entry.level != block.entry.level + 1
+                        {
+                            return Err(format!("LOD node in block {b} (level {}) points at block {child_block} of level {}", block.entry.level, child.entry.level));
+                        }
+                        let n = u32::from(left_present) + u32::from(right_present);
+                        if child_treelet + n > child.entry.item_count {
+                            return Err("LOD child treelets out of range".into());
+                        }
+                        for k in 0..n {
+                            stack.push((child_block, child_treelet + k, d + 1));
+                        }
+                        // Proxies go to the coarsest LOD nodes first: no level may have a
+                        // proxy finer than a level with a node without one (checked after the
+                        // walk).
+                        let level = u32::from(block.entry.level);
+                        if proxy == NO_PROXY {
+                            min_unproxied_level = min_unproxied_level.min(level);
+                            continue;
+                        }
+                        max_proxied_level = max_proxied_level.max(level);
+                        let p = reader
+                            .proxies()
+                            .get(proxy as usize)
+                            .ok_or("LOD node with an out-of-range proxy")?;
+                        if p.node_block != b {
+                            return Err(format!(
+                                "proxy {proxy} names block {}, its node is in block {b}",
+                                p.node_block
+                            ));
+                        }
+                    }
+                    Node::Leaf {
+                        count,
+                        first,
+                        block: tri_block,
+                    } => {
+                        let tblock = blocks
+                            .get(tri_block as usize)
+                            .ok_or("leaf block out of range")?;
+                        let tris = tblock.triangles(attrs).map_err(s)?;
+                        for e in usize::from(first)..usize::from(first) + usize::from(count) {
+                            let local = tris.list(e).map_err(s)?;
+                            let m = self.lookup(tris.positions(usize::from(local)).map_err(s)?)?;
+                            self.found.reached.insert(m);
+                        }
+                    }
+                }
+            }
+        }
+        Ok(Walked {
+            treelets: seen_treelets.len(),
+            depth,
+            levels,
+            max_proxied_level,
+            min_unproxied_level,
+        })
+    }
 }
 
 fn build_tree(mesh: &Mesh, max_leaf: u32) -> Res<KdTree> {

@@ -3,7 +3,7 @@
 
 use oocfmt::records::{Node, TreeletBlockWriter};
 
-use super::plan::{PlannedBlock, Role, TreePlan, Treelet};
+use super::plan::{NodeInfo, PlannedBlock, Role, TreePlan, Treelet};
 use super::triangles::LeafRef;
 use super::LayoutError;
 use crate::kdtree::{KdNode, KdTree, NodeId};
@@ -64,122 +64,144 @@ impl Encoder<'_> {
         }
         self.at += 1;
         let info = self.plan.info(id);
-        let pos = self.w.next_node_pos();
         match (info.role, self.tree.node(id)) {
-            (Role::Leaf, Some(KdNode::Leaf { .. })) => {
-                let leaf = self
-                    .leaves
-                    .get(id.index())
-                    .copied()
-                    .flatten()
-                    .ok_or(LayoutError::Internal("a leaf has no triangle block"))?;
-                let block = self
-                    .first_triangle_block
-                    .checked_add(leaf.block)
-                    .ok_or(LayoutError::TooMany("blocks"))?;
-                self.w.push_node(&Node::Leaf {
-                    count: leaf.count,
-                    first: leaf.first,
-                    block,
-                });
-            }
+            (Role::Leaf, Some(KdNode::Leaf { .. })) => self.leaf(id),
             (
                 Role::Lod,
                 Some(&KdNode::Inner {
                     axis,
                     split,
-                    children: [l, r],
+                    children,
                 }),
-            ) => {
-                let data = self
-                    .plan
-                    .lod_data(id)
-                    .ok_or(LayoutError::Internal("a LOD node has no LOD data"))?;
-                let radius = info
-                    .cell
-                    .half_diagonal_up()
-                    .ok_or(LayoutError::SceneTooLarge)?;
-                // The LOD entry (spec §3): the voxel, then the R-LOD, as the file has them.
-                let voxel_at = self
-                    .plan
-                    .kinds
-                    .voxel
-                    .then(|| self.w.push_voxel(&data.voxel));
-                let rlod_at = match self.plan.kinds.rlod {
-                    true => Some(
-                        self.w.push_rlod(
-                            self.plan
-                                .rlod(id)
-                                .ok_or(LayoutError::Internal("a LOD node has no R-LOD"))?,
-                        ),
-                    ),
-                    false => None,
-                };
-                let voxel_offset = voxel_at
-                    .or(rlod_at)
-                    .ok_or(LayoutError::Internal("a LOD node has an empty LOD entry"))?;
-                self.w.push_node(&Node::Lod {
-                    axis,
-                    split,
-                    radius,
-                    left_present: l.is_some(),
-                    right_present: r.is_some(),
-                    child_treelet: info.child_treelet,
-                    child_block: info.child_block,
-                    voxel_offset,
-                    proxy: info.proxy,
-                });
-            }
+            ) => self.lod(id, &info, (axis, split), children),
             (
                 Role::Basic,
                 Some(&KdNode::Inner {
                     axis,
                     split,
-                    children: [l, r],
+                    children,
                 }),
-            ) => {
-                let left_at = pos + oocfmt::records::NODE_BASIC_LEN;
-                let left_span = match l {
-                    Some(_) => self
-                        .treelet
-                        .spans
-                        .get(k + 1)
-                        .copied()
-                        .ok_or(LayoutError::Internal("a child is outside its treelet"))?,
-                    None => 0,
-                };
-                let right_at = left_at + left_span;
-                let units = |present: bool, at: usize| -> Result<u16, LayoutError> {
-                    if present {
-                        TreeletBlockWriter::units_between(pos, at)
-                            .map_err(|_| LayoutError::TreeletSpan { bytes: at - pos })
-                    } else {
-                        Ok(0)
-                    }
-                };
-                let left = units(l.is_some(), left_at)?;
-                let right = units(r.is_some(), right_at)?;
-                self.w.push_node(&Node::Basic {
-                    axis,
-                    split,
-                    left,
-                    right,
-                });
-                for (child, at) in [(l, left_at), (r, right_at)] {
-                    if let Some(c) = child {
-                        if self.w.next_node_pos() != at {
-                            return Err(LayoutError::Internal(
-                                "a child landed away from its planned offset",
-                            ));
-                        }
-                        self.node(c)?;
-                    }
-                }
+            ) => self.basic(k, (axis, split), children),
+            _ => Err(LayoutError::Internal(
+                "a node's role does not match its kind",
+            )),
+        }
+    }
+
+    /// Writes leaf `id`, pointing at its triangles.
+    fn leaf(&mut self, id: NodeId) -> Result<(), LayoutError> {
+        let leaf = self
+            .leaves
+            .get(id.index())
+            .copied()
+            .flatten()
+            .ok_or(LayoutError::Internal("a leaf has no triangle block"))?;
+        let block = self
+            .first_triangle_block
+            .checked_add(leaf.block)
+            .ok_or(LayoutError::TooMany("blocks"))?;
+        self.w.push_node(&Node::Leaf {
+            count: leaf.count,
+            first: leaf.first,
+            block,
+        });
+        Ok(())
+    }
+
+    /// Writes LOD node `id` (split `(axis, split)`, children `[l, r]`) after its LOD entry;
+    /// its children are in the child treelets the plan gave it.
+    fn lod(
+        &mut self,
+        id: NodeId,
+        info: &NodeInfo,
+        (axis, split): (u8, f32),
+        [l, r]: [Option<NodeId>; 2],
+    ) -> Result<(), LayoutError> {
+        let data = self
+            .plan
+            .lod_data(id)
+            .ok_or(LayoutError::Internal("a LOD node has no LOD data"))?;
+        let radius = info
+            .cell
+            .half_diagonal_up()
+            .ok_or(LayoutError::SceneTooLarge)?;
+        // The LOD entry (spec §3): the voxel, then the R-LOD, as the file has them.
+        let voxel_at = self
+            .plan
+            .kinds
+            .voxel
+            .then(|| self.w.push_voxel(&data.voxel));
+        let rlod_at = match self.plan.kinds.rlod {
+            true => Some(
+                self.w.push_rlod(
+                    self.plan
+                        .rlod(id)
+                        .ok_or(LayoutError::Internal("a LOD node has no R-LOD"))?,
+                ),
+            ),
+            false => None,
+        };
+        let voxel_offset = voxel_at
+            .or(rlod_at)
+            .ok_or(LayoutError::Internal("a LOD node has an empty LOD entry"))?;
+        self.w.push_node(&Node::Lod {
+            axis,
+            split,
+            radius,
+            left_present: l.is_some(),
+            right_present: r.is_some(),
+            child_treelet: info.child_treelet,
+            child_block: info.child_block,
+            voxel_offset,
+            proxy: info.proxy,
+        });
+        Ok(())
+    }
+
+    /// Writes the basic node at index `k` of the treelet's preorder (split `(axis, split)`,
+    /// children `[l, r]`), then its children's subtrees at the offsets its spans give.
+    fn basic(
+        &mut self,
+        k: usize,
+        (axis, split): (u8, f32),
+        [l, r]: [Option<NodeId>; 2],
+    ) -> Result<(), LayoutError> {
+        let pos = self.w.next_node_pos();
+        let left_at = pos + oocfmt::records::NODE_BASIC_LEN;
+        let left_span = match l {
+            Some(_) => self
+                .treelet
+                .spans
+                .get(k + 1)
+                .copied()
+                .ok_or(LayoutError::Internal("a child is outside its treelet"))?,
+            None => 0,
+        };
+        let right_at = left_at + left_span;
+        let units = |present: bool, at: usize| -> Result<u16, LayoutError> {
+            if present {
+                TreeletBlockWriter::units_between(pos, at)
+                    .map_err(|_| LayoutError::TreeletSpan { bytes: at - pos })
+            } else {
+                Ok(0)
             }
-            _ => {
-                return Err(LayoutError::Internal(
-                    "a node's role does not match its kind",
-                ))
+        };
+        let left = units(l.is_some(), left_at)?;
+        let right = units(r.is_some(), right_at)?;
+        self.w.push_node(&Node::Basic {
+            axis,
+            split,
+            left,
+            right,
+        });
+        for (child, at) in [(l, left_at), (r, right_at)] {
+            if let Some(c) = child {
+                if self.w.next_node_pos() != at {
+                    return Err(LayoutError::Internal(
+                        "a child landed away from its planned offset",
+                    ));
+                }
+                self.node(c)?;
             }
         }
         Ok(())

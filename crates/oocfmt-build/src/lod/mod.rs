@@ -141,17 +141,13 @@ pub(crate) fn compute_in(
             },
             |(tracer, scratch), &id| {
                 let (triangles, area) = totals.of(id);
-                node_lod(
-                    mesh,
-                    tree,
-                    tracer,
-                    scratch,
-                    NodeTotals { triangles, area },
+                let node = NodeToSample {
                     id,
-                    cell(id),
-                    voxel_threshold,
-                    proxied(id),
-                )
+                    cell: cell(id),
+                    totals: NodeTotals { triangles, area },
+                    diagonals: proxied(id),
+                };
+                node_lod(mesh, tree, tracer, scratch, node, voxel_threshold)
             },
         )
         .collect()
@@ -249,18 +245,30 @@ pub fn subtree_triangles(tree: &KdTree, id: NodeId) -> Vec<u32> {
     out
 }
 
-#[allow(clippy::too_many_arguments)]
+/// A LOD node to sample: its cell, what its subtree holds, and whether it casts the diagonal
+/// proxy directions.
+struct NodeToSample {
+    id: NodeId,
+    cell: Bounds,
+    totals: NodeTotals,
+    diagonals: bool,
+}
+
+/// The LOD data of `node`, sampled against the triangles of its subtree in `mesh`.
 fn node_lod<'a>(
     mesh: &'a Mesh,
     tree: &KdTree,
     tracer: &mut Tracer<'a>,
     scratch: &mut Scratch,
-    totals: NodeTotals,
-    id: NodeId,
-    cell: Bounds,
+    node: NodeToSample,
     threshold: f32,
-    diagonals: bool,
 ) -> LodData {
+    let NodeToSample {
+        id,
+        cell,
+        totals,
+        diagonals,
+    } = node;
     let each = totals.triangles <= EACH_TRIANGLE_MAX;
     scratch.prepared.clear();
     if each {

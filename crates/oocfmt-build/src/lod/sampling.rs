@@ -111,6 +111,22 @@ pub(super) struct NodeSampler<'a, 'b> {
     pub force_max: bool,
 }
 
+/// Where a node's rays start: the cell's low corner and extent in f64, and the tolerance of
+/// hits behind a ray's start.
+struct Frame {
+    lo: [f64; 3],
+    ext: [f64; 3],
+    eps: f64,
+}
+
+impl Frame {
+    /// The area of face `f` (faces in pairs per axis).
+    fn face_area(&self, f: usize) -> f64 {
+        let a = f / 2;
+        self.ext[(a + 1) % 3] * self.ext[(a + 2) % 3]
+    }
+}
+
 /// The voxel (`None` when no ray hit anything) and the 18 proxy samples of a node.
 pub(super) struct Sampled {
     pub voxel: Option<Voxel>,
@@ -131,10 +147,8 @@ impl NodeSampler<'_, '_> {
         // Rays start on the cell's boundary, often on a surface lying in it: allow hits a
         // rounding error behind the start.
         let eps = 1e-9 * (diag + scale);
-        let face_area = |f: usize| {
-            let a = f / 2;
-            ext[(a + 1) % 3] * ext[(a + 2) % 3]
-        };
+        let frame = Frame { lo, ext, eps };
+        let face_area = |f: usize| frame.face_area(f);
 
         let mut faces = [Acc::default(); 6];
         let base = if self.force_max {
@@ -149,12 +163,12 @@ impl NodeSampler<'_, '_> {
             let a = f / 2;
             let mut dir = [0.0; 3];
             dir[a] = if f % 2 == 0 { 1.0 } else { -1.0 };
-            self.cast_face(acc, f, dir, 0..base, &lo, &ext, eps);
+            self.cast_face(acc, f, dir, 0..base, &frame);
             // More rays where the mean's standard error could move the sample by half the
             // one-sample threshold.
             let uncertain = acc.spread() / (base as f64).sqrt() > f64::from(self.threshold) / 2.0;
             if base == FACE_RAYS_BASE && uncertain {
-                self.cast_face(acc, f, dir, base..FACE_RAYS_MAX, &lo, &ext, eps);
+                self.cast_face(acc, f, dir, base..FACE_RAYS_MAX, &frame);
             }
         }
         let areas: [f64; 6] = std::array::from_fn(face_area);
@@ -179,7 +193,7 @@ impl NodeSampler<'_, '_> {
             *p = if rays < DIAGONAL_RAYS_MIN {
                 blend(&faces, &areas, dir)
             } else {
-                let acc = self.cast_direction(dir, rays, &lo, &ext, &face_area, eps);
+                let acc = self.cast_direction(dir, rays, &frame);
                 acc.facing_sample().unwrap_or(Sample::EMPTY)
             };
         }
@@ -191,17 +205,15 @@ impl NodeSampler<'_, '_> {
     }
 
     /// Casts rays `range` of face `f`'s Halton sequence straight through the cell.
-    #[allow(clippy::too_many_arguments)]
     fn cast_face(
         &mut self,
         acc: &mut Acc,
         f: usize,
         dir: [f64; 3],
         range: std::ops::Range<usize>,
-        lo: &[f64; 3],
-        ext: &[f64; 3],
-        eps: f64,
+        frame: &Frame,
     ) {
+        let (lo, ext, eps) = (&frame.lo, &frame.ext, frame.eps);
         if let Target::Subtree(node) = self.target {
             // A face's rays share their direction and starting plane: traced together.
             for part in range.clone().step_by(PACKET_MAX) {
@@ -234,22 +246,15 @@ impl NodeSampler<'_, '_> {
 
     /// Casts `rays` rays along `dir` from the faces it enters through, spread over them in
     /// proportion to their projected areas, so they cover the cell's silhouette evenly.
-    fn cast_direction(
-        &mut self,
-        dir: [f64; 3],
-        rays: usize,
-        lo: &[f64; 3],
-        ext: &[f64; 3],
-        face_area: &dyn Fn(usize) -> f64,
-        eps: f64,
-    ) -> Acc {
+    fn cast_direction(&mut self, dir: [f64; 3], rays: usize, frame: &Frame) -> Acc {
+        let (lo, ext, eps) = (&frame.lo, &frame.ext, frame.eps);
         let mut acc = Acc::default();
         // Face f's outward normal is −axis for even f, +axis for odd f; it is entered by a
         // ray whose direction points against that normal.
         let weights: [f64; 6] = std::array::from_fn(|f| {
             let facing = -outward(f) * dir[f / 2];
             if facing > 0.0 {
-                face_area(f) * facing
+                frame.face_area(f) * facing
             } else {
                 0.0
             }

@@ -195,23 +195,129 @@ fn load_mesh(chunk: &Chunk, facts: &SceneFacts) -> Result<(Mesh, Vec<bool>), Ooc
     Ok((mesh, primary))
 }
 
-/// Builds chunk `chunk`, answers the pending rays of the top LOD nodes above it, measures its
-/// surface against their R-LOD `planes`, and spills its blocks. `proxy_base` is the id of its
-/// first proxy.
-#[allow(clippy::too_many_arguments)]
-pub fn build_chunk(
+/// What every chunk of one build is built with, and the spill file their blocks go to.
+pub struct ChunkBuilder<'a> {
+    pub facts: &'a SceneFacts,
+    pub kd: &'a KdBuildOptions,
+    pub layout: &'a LayoutOptions,
+    pub spill: BlockSpill,
+}
+
+impl ChunkBuilder<'_> {
+    /// Builds chunk `chunk`, answers the pending rays of the top LOD nodes above it, measures
+    /// its surface against their R-LOD `planes`, and spills its blocks. `proxy_base` is the id
+    /// of its first proxy.
+    pub fn build(
+        &mut self,
+        chunk: &Chunk,
+        proxy_base: u32,
+        rays: &mut [&mut [PendingRay]],
+        planes: &[(usize, PlaneFit)],
+    ) -> Result<ChunkOut, OocError> {
+        let (mesh, primary) = load_mesh(chunk, self.facts)?;
+        let plane_pieces = plane_pieces(&mesh, chunk, planes);
+        let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
+        let kd = self.kd;
+        let nodes = build_cell(&mesh, all, chunk.cell, chunk.depth + 1, kd)?;
+        let tree = KdTree::from_parts(&mesh, nodes, Some(NodeId(0)), chunk.cell, kd.params())?;
+        answer_rays(&mesh, &tree, &chunk.cell, rays);
+
+        let plan = self.plan(&mesh, &tree, chunk, proxy_base)?;
+        let vertices = VertexTable::new(&mesh);
+        let stored_elsewhere: Vec<bool> = primary.iter().map(|p| !p).collect();
+        let (attrs, block_size) = (self.facts.attrs, self.facts.block_size);
+        let tri_plan =
+            plan_triangles_with(&mesh, &tree, &vertices, attrs, block_size, stored_elsewhere)?;
+
+        let mut counts = ChunkCounts {
+            depth: chunk.depth + plan.depth,
+            ..ChunkCounts::default()
+        };
+        let mut treelet_blocks = Vec::with_capacity(plan.blocks.len());
+        for b in &plan.blocks {
+            let raw = encode_treelets(b, &tree, &plan, &tri_plan.leaves, 0)?;
+            let n =
+                u32::try_from(b.treelets.len()).map_err(|_| LayoutError::TooMany("treelets"))?;
+            treelet_blocks.push(self.spill.push(BlockKind::Treelet, b.level, n, &raw)?);
+            for &t in &b.treelets {
+                count_treelet(&plan, t, &mut counts);
+            }
+        }
+        let mut triangle_blocks = Vec::with_capacity(tri_plan.blocks.len());
+        for b in &tri_plan.blocks {
+            let (raw, c) = encode_triangles(b, &mesh, &vertices, attrs)?;
+            let n = u32::try_from(c.triangles).map_err(|_| LayoutError::TooMany("triangles"))?;
+            triangle_blocks.push(self.spill.push(BlockKind::Triangle, 0, n, &raw)?);
+            counts.triangles.primaries += c.primaries;
+            counts.triangles.triangles += c.triangles;
+            counts.triangles.vertices += c.vertices;
+        }
+        let mut proxies = Vec::with_capacity(plan.lod_order.len() * oocfmt::records::PROXY_LEN);
+        proxy_records(&plan, &mut proxies)?;
+        let area = (0..mesh.triangles.len())
+            .filter(|&t| primary.get(t).copied().unwrap_or(false))
+            .map(|t| triangle_area(&mesh, t))
+            .sum();
+        Ok(ChunkOut {
+            upper: upper_nodes(&tree, &plan, &tri_plan.leaves)?,
+            treelet_blocks,
+            triangle_blocks,
+            proxies,
+            counts,
+            area,
+            plane_pieces,
+        })
+    }
+
+    /// Plans the chunk's treelet blocks: its top treelet detached for the top layout, its LOD
+    /// levels numbered on from the depth of its root, its proxies from `proxy_base`.
+    fn plan(
+        &self,
+        mesh: &Mesh,
+        tree: &KdTree,
+        chunk: &Chunk,
+        proxy_base: u32,
+    ) -> Result<TreePlan, LayoutError> {
+        let layout = self.layout;
+        let h = u32::from(layout.treelet_height.max(1));
+        let first_level =
+            u16::try_from(chunk.depth / h + 1).map_err(|_| LayoutError::TooMany("LOD levels"))?;
+        let max_proxies = match layout.triangles_per_proxy {
+            0 => usize::MAX,
+            n => (chunk.count as usize)
+                .div_ceil(n as usize)
+                .max(1 << (h - 1).min(16)),
+        };
+        let external = BTreeMap::new();
+        plan_tree_with(
+            tree,
+            &PlanSpec {
+                treelet_height: layout.treelet_height,
+                block_size: self.facts.block_size,
+                max_proxies,
+                depth_offset: chunk.depth,
+                proxy_base,
+                detach_root: true,
+                first_level,
+                lod: LodSource::Sample {
+                    mesh,
+                    threshold: layout.voxel_threshold,
+                    kinds: layout.write.lod,
+                },
+                external: &external,
+            },
+        )
+    }
+}
+
+/// The deviation of the chunk's surface from each R-LOD plane of the top LOD nodes above it.
+/// The chunk's cell lies inside each top node's cell, and the chunks partition it.
+fn plane_pieces(
+    mesh: &Mesh,
     chunk: &Chunk,
-    facts: &SceneFacts,
-    kd: &KdBuildOptions,
-    layout: &LayoutOptions,
-    proxy_base: u32,
-    rays: &mut [&mut [PendingRay]],
     planes: &[(usize, PlaneFit)],
-    spill: &mut BlockSpill,
-) -> Result<ChunkOut, OocError> {
-    let (mesh, primary) = load_mesh(chunk, facts)?;
-    // The chunk's cell lies inside each top node's cell, and the chunks partition it.
-    let plane_pieces = planes
+) -> Vec<(usize, PlaneFit)> {
+    planes
         .par_iter()
         .map(|(node, plane)| {
             let mut d = Deviation::new(plane, chunk.cell);
@@ -222,93 +328,18 @@ pub fn build_chunk(
             }
             (*node, d.finish())
         })
-        .collect();
-    let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
-    let nodes = build_cell(&mesh, all, chunk.cell, chunk.depth + 1, kd)?;
-    let tree = KdTree::from_parts(&mesh, nodes, Some(NodeId(0)), chunk.cell, kd.params())?;
-    answer_rays(&mesh, &tree, &chunk.cell, rays);
+        .collect()
+}
 
-    let h = u32::from(layout.treelet_height.max(1));
-    let first_level =
-        u16::try_from(chunk.depth / h + 1).map_err(|_| LayoutError::TooMany("LOD levels"))?;
-    let max_proxies = match layout.triangles_per_proxy {
-        0 => usize::MAX,
-        n => (chunk.count as usize)
-            .div_ceil(n as usize)
-            .max(1 << (h - 1).min(16)),
-    };
-    let external = BTreeMap::new();
-    let plan = plan_tree_with(
-        &tree,
-        &PlanSpec {
-            treelet_height: layout.treelet_height,
-            block_size: facts.block_size,
-            max_proxies,
-            depth_offset: chunk.depth,
-            proxy_base,
-            detach_root: true,
-            first_level,
-            lod: LodSource::Sample {
-                mesh: &mesh,
-                threshold: layout.voxel_threshold,
-                kinds: layout.write.lod,
-            },
-            external: &external,
-        },
-    )?;
-    let vertices = VertexTable::new(&mesh);
-    let stored_elsewhere: Vec<bool> = primary.iter().map(|p| !p).collect();
-    let tri_plan = plan_triangles_with(
-        &mesh,
-        &tree,
-        &vertices,
-        facts.attrs,
-        facts.block_size,
-        stored_elsewhere,
-    )?;
-
-    let mut counts = ChunkCounts {
-        depth: chunk.depth + plan.depth,
-        ..ChunkCounts::default()
-    };
-    let mut treelet_blocks = Vec::with_capacity(plan.blocks.len());
-    for b in &plan.blocks {
-        let raw = encode_treelets(b, &tree, &plan, &tri_plan.leaves, 0)?;
-        let n = u32::try_from(b.treelets.len()).map_err(|_| LayoutError::TooMany("treelets"))?;
-        treelet_blocks.push(spill.push(BlockKind::Treelet, b.level, n, &raw)?);
-        for &t in &b.treelets {
-            count_treelet(&plan, t, &mut counts);
-        }
-    }
-    let mut triangle_blocks = Vec::with_capacity(tri_plan.blocks.len());
-    for b in &tri_plan.blocks {
-        let (raw, c) = encode_triangles(b, &mesh, &vertices, facts.attrs)?;
-        let n = u32::try_from(c.triangles).map_err(|_| LayoutError::TooMany("triangles"))?;
-        triangle_blocks.push(spill.push(BlockKind::Triangle, 0, n, &raw)?);
-        counts.triangles.primaries += c.primaries;
-        counts.triangles.triangles += c.triangles;
-        counts.triangles.vertices += c.vertices;
-    }
-    let mut proxies = Vec::with_capacity(plan.lod_order.len() * oocfmt::records::PROXY_LEN);
+/// Appends the proxy records of `plan`'s proxied LOD nodes, in proxy-id order.
+pub(super) fn proxy_records(plan: &TreePlan, out: &mut Vec<u8>) -> Result<(), LayoutError> {
     for &n in &plan.lod_order {
         let data = plan
             .lod_data(n)
             .ok_or(LayoutError::Internal("a LOD node has no LOD data"))?;
-        data.proxy(plan.info(n).block).encode_into(&mut proxies);
+        data.proxy(plan.info(n).block).encode_into(out);
     }
-    let area = (0..mesh.triangles.len())
-        .filter(|&t| primary.get(t).copied().unwrap_or(false))
-        .map(|t| triangle_area(&mesh, t))
-        .sum();
-    Ok(ChunkOut {
-        upper: upper_nodes(&tree, &plan, &tri_plan.leaves)?,
-        treelet_blocks,
-        triangle_blocks,
-        proxies,
-        counts,
-        area,
-        plane_pieces,
-    })
+    Ok(())
 }
 
 pub(super) fn count_treelet(plan: &TreePlan, t: usize, counts: &mut ChunkCounts) {

@@ -21,17 +21,19 @@ use std::path::Path;
 use rustc_hash::FxHashMap;
 
 use oocfmt::metadata::{Build, Counts, Provenance, Scene, Schema, TreeletRef};
+use oocfmt::records::Rlod;
 use oocfmt::{BlockKind, Metadata, WriteSummary};
 
 use crate::kdtree::{KdBuildOptions, KdError, NodeId};
 use crate::layout::lod_params;
-use crate::layout::plan::{plan_tree_with, LodSource, PlanSpec};
+use crate::layout::plan::{plan_tree_with, LodSource, PlanSpec, Role, TreePlan};
 use crate::layout::treelets::encode_treelets;
 use crate::layout::triangles::LeafRef;
 use crate::layout::{LayoutError, LayoutOptions, RawBlock};
 use crate::lod::rlod::PlaneFit;
+use crate::lod::LodData;
 use crate::progress::Progress;
-use chunk::{build_chunk, BlockSpill, ChunkCounts, ChunkOut, SceneFacts};
+use chunk::{BlockSpill, ChunkBuilder, ChunkCounts, ChunkOut, SceneFacts};
 use oocfmt_meshio::import::{compact_materials, InputTriangle, PartSchema};
 use soup::Soup;
 
@@ -87,256 +89,449 @@ pub fn build(
     dir: &Path,
     progress: &mut dyn Progress,
 ) -> Result<(WriteSummary, OocStats), OocError> {
-    kd.check()?;
-    let block_size = 1usize << layout.write.block_size_log2.min(20);
-    oocfmt::WriteOptions::default()
-        .with_block_size(1u64 << layout.write.block_size_log2.min(63))?;
-    let budget = chunk_triangles.max(1);
-    let bounds = soup.bounds;
-    let materials = soup.used_materials.iter().any(Option::is_some);
-    let (_, table) = compact_materials(&soup.used_materials, soup.materials.clone())?;
-    let schema = Schema {
-        vertex_normals: soup.normals,
-        vertex_colours: soup.colours,
-        triangle_materials: materials,
-        six_sample_voxels: false,
-    };
-    let facts = SceneFacts {
-        schema: PartSchema {
-            normals: soup.normals,
-            colours: soup.colours,
-            materials: materials.then(|| table.clone()),
-        },
-        material_index: materials.then(|| {
-            soup.used_materials
-                .iter()
-                .enumerate()
-                .map(|(i, &m)| (m, i as u32))
-                .collect::<FxHashMap<_, _>>()
-        }),
-        attrs: schema.triangle_attributes(),
-        block_size,
-    };
-    let colour = |t: &InputTriangle| facts.colour(t);
-    let rlods = layout.write.lod.rlod.then_some(split::RlodMoments {
-        treelet_height: layout.treelet_height,
-        colour: &colour,
-    });
-    let mut tree = split::split(
-        &soup.path,
-        soup.count,
-        bounds,
-        budget,
-        dir,
-        rlods.as_ref(),
-        progress,
-    )?;
-    let mut planes: BTreeMap<usize, PlaneFit> = std::mem::take(&mut tree.planes);
-
-    let mut top_lod =
-        top::top_lod_nodes(&tree, bounds, layout.treelet_height, layout.voxel_threshold);
-    let mut spill = BlockSpill::create(&dir.join("blocks.spill"))?;
-    let mut outs: Vec<ChunkOut> = Vec::with_capacity(tree.chunks.len());
-    let mut chunk_proxies = Vec::new();
-    let mut proxy_count = 0u32;
-    progress.phase("chunks", Some(tree.chunks.len() as u64));
-    for (i, c) in tree.chunks.iter().enumerate() {
-        let mut rays: Vec<&mut [chunk::PendingRay]> = top_lod
-            .iter_mut()
-            .filter(|t| c.ancestors.contains(&t.node))
-            .map(|t| t.rays.as_mut_slice())
-            .collect();
-        let above: Vec<(usize, PlaneFit)> = c
-            .ancestors
-            .iter()
-            .filter_map(|a| planes.get(a).map(|p| (*a, *p)))
-            .collect();
-        let mut out = build_chunk(
-            c,
-            &facts,
-            kd,
-            layout,
-            proxy_count,
-            &mut rays,
-            &above,
-            &mut spill,
-        )?;
-        for (node, piece) in &out.plane_pieces {
-            if let Some(p) = planes.get_mut(node) {
-                p.widen(piece);
-            }
-        }
-        std::fs::remove_file(&c.path).map_err(|e| OocError::spill(&c.path, e))?;
-        let n = u32::try_from(out.proxies.len() / oocfmt::records::PROXY_LEN)
-            .map_err(|_| LayoutError::TooMany("proxies"))?;
-        proxy_count = proxy_count
-            .checked_add(n)
-            .ok_or(LayoutError::TooMany("proxies"))?;
-        chunk_proxies.push(std::mem::take(&mut out.proxies));
-        outs.push(out);
-        progress.advance(i as u64 + 1);
-    }
-    progress.finish_phase();
-
-    // The top: LOD data of the median-split LOD nodes, then the skeleton's plan.
-    let mut given = BTreeMap::new();
-    for t in &top_lod {
-        let area: f64 = tree
-            .chunks
-            .iter()
-            .zip(&outs)
-            .filter(|(c, _)| c.ancestors.contains(&t.node))
-            .map(|(_, o)| o.area)
-            .sum();
-        let rlod = match planes.get(&t.node) {
-            Some(p) => Some(p.record(t.cell.half_diagonal_up().unwrap_or(f32::MAX))),
-            None if layout.write.lod.rlod => {
-                return Err(LayoutError::Internal("a top LOD node has no R-LOD plane").into())
-            }
-            None => None,
-        };
-        given.insert(
-            t.node,
-            (top::finish_top_lod(t, layout.voxel_threshold, area), rlod),
-        );
-    }
-    let skel = top::skeleton(&tree, &outs, &given, bounds)?;
-    let external: BTreeMap<NodeId, (u32, u32)> = skel
-        .frontier
-        .iter()
-        .map(|(&id, &(_, block, treelet))| (id, (block, treelet)))
-        .collect();
-    let lod_of = |id: NodeId| skel.lod.get(&id).copied();
-    let mut plan = plan_tree_with(
-        &skel.tree,
-        &PlanSpec {
-            treelet_height: layout.treelet_height,
-            block_size,
-            max_proxies: usize::MAX,
-            depth_offset: 0,
-            proxy_base: proxy_count,
-            detach_root: false,
-            first_level: 0,
-            lod: LodSource::Given {
-                data: &lod_of,
-                kinds: layout.write.lod,
-            },
-            external: &external,
-        },
-    )?;
-    let top_levels: Vec<u16> = plan.blocks.iter().map(|b| b.level).collect();
-    let order = assemble::order(&top_levels, &outs)?;
-
-    // Final ids into the top plan, then encode it.
-    let top_block = |local: u32| {
-        order
-            .top
-            .get(local as usize)
-            .copied()
-            .ok_or(LayoutError::Internal("a top block id is out of range"))
-    };
-    for k in 0..plan.info.len() {
-        let id = NodeId(k as u32);
-        let info = plan.info(id);
-        let block = top_block(info.block).unwrap_or(info.block);
-        let child_block = match skel.frontier.get(&id) {
-            Some(&(chunk, local, _)) => order
-                .chunk_treelets
-                .get(chunk)
-                .and_then(|m| m.get(local as usize))
-                .copied()
-                .ok_or(LayoutError::Internal(
-                    "a frontier node's child block is missing",
-                ))?,
-            None if info.role == crate::layout::plan::Role::Lod => top_block(info.child_block)?,
-            None => info.child_block,
-        };
-        if let Some(slot) = plan.info.get_mut(k) {
-            slot.block = block;
-            slot.child_block = child_block;
-        }
-    }
-    let mut leaves: Vec<Option<LeafRef>> = vec![None; skel.tree.nodes().len()];
-    for (&id, &(chunk, r)) in &skel.leaves {
-        let block = order
-            .chunk_triangles
-            .get(chunk)
-            .and_then(|m| m.get(r.block as usize))
-            .copied()
-            .ok_or(LayoutError::Internal("a leaf's triangle block is missing"))?;
-        if let Some(slot) = leaves.get_mut(id.index()) {
-            *slot = Some(LeafRef { block, ..r });
-        }
-    }
-    let top_raw: Vec<RawBlock> = plan
-        .blocks
-        .iter()
-        .map(|b| {
-            Ok(RawBlock {
-                kind: BlockKind::Treelet,
-                level: b.level,
-                item_count: u32::try_from(b.treelets.len())
-                    .map_err(|_| LayoutError::TooMany("treelets"))?,
-                raw: encode_treelets(b, &skel.tree, &plan, &leaves, 0)?,
-            })
-        })
-        .collect::<Result<_, LayoutError>>()?;
-
-    let mut proxies = Vec::new();
-    for (i, mut records) in chunk_proxies.into_iter().enumerate() {
-        order.patch_proxies(i, &mut records)?;
-        proxies.extend_from_slice(&records);
-    }
-    for &n in &plan.lod_order {
-        let data = plan
-            .lod_data(n)
-            .ok_or(LayoutError::Internal("a LOD node has no LOD data"))?;
-        data.proxy(plan.info(n).block).encode_into(&mut proxies);
-    }
-
-    let mut counts = ChunkCounts::default();
-    for b in &plan.blocks {
-        for &t in &b.treelets {
-            chunk::count_treelet(&plan, t, &mut counts);
-        }
-    }
-    let mut stats = OocStats {
-        chunks: outs.len() as u64,
-        chunk_budget_triangles: budget,
-        oversized_chunks: tree.oversized.len() as u64,
-        top_lod_nodes: top_lod.len() as u64,
-        ..OocStats::default()
-    };
-    for (c, o) in tree.chunks.iter().zip(&outs) {
-        add_counts(&mut counts, &o.counts);
-        stats.largest_chunk_triangles = stats.largest_chunk_triangles.max(c.count);
-        stats.split_copies += c.count;
-    }
-    stats.split_copies = stats.split_copies.saturating_sub(soup.count);
-    let metadata = metadata(
-        &counts,
-        &order,
-        proxies.len(),
-        schema,
-        table,
-        kd,
-        layout,
-        &stats,
-        bounds,
-    );
+    let b = OocBuild::new(&soup, kd, layout, chunk_triangles, dir)?;
+    let mut tree = b.split(progress)?;
+    let planes = std::mem::take(&mut tree.planes);
+    let mut chunks = b.build_chunks(&tree, planes, progress)?;
+    let given = b.top_lod_data(&tree, &chunks)?;
+    let mut top = b.plan_top(&tree, &chunks, &given)?;
+    top.assign_final_ids()?;
+    let top_raw = top.encode()?;
+    let proxies = b.gather_proxies(std::mem::take(&mut chunks.proxies), &top)?;
+    let (counts, stats) = b.tally(&tree, &chunks, &top);
+    let metadata = b.metadata(&counts, &top.order, proxies.len(), &stats);
     let summary = assemble::write(
         output,
         layout.write,
         &assemble::Parts {
-            order: &order,
+            order: &top.order,
             top: &top_raw,
-            spill: spill.path(),
+            spill: chunks.spill.path(),
             proxies: &proxies,
         },
         &metadata,
         progress,
     )?;
     Ok((summary, stats))
+}
+
+/// One out-of-core build: its inputs and the scene-wide facts every phase reads. [`build`]
+/// runs the phases in data-flow order, each on what the one before produced.
+struct OocBuild<'a> {
+    soup: &'a Soup,
+    kd: &'a KdBuildOptions,
+    layout: &'a LayoutOptions,
+    /// Most triangles a chunk holds (at least 1).
+    budget: u64,
+    dir: &'a Path,
+    block_size: usize,
+    schema: Schema,
+    /// The scene's material table, compacted to the materials triangles use.
+    materials: Vec<oocfmt::metadata::Material>,
+    facts: SceneFacts,
+}
+
+/// The chunks, built and spilled.
+struct Chunks {
+    outs: Vec<ChunkOut>,
+    /// Each chunk's proxy records (node blocks chunk-local), taken out of its [`ChunkOut`].
+    proxies: Vec<Vec<u8>>,
+    /// Proxies of all chunks: the top's proxy ids start here.
+    proxy_count: u32,
+    spill: BlockSpill,
+    top_lod: Vec<top::TopLod>,
+    /// The R-LOD planes of the top LOD nodes, their deviations widened by every chunk below.
+    planes: BTreeMap<usize, PlaneFit>,
+}
+
+/// The top of the tree, planned, and the file order of every block.
+struct TopPlan {
+    skel: top::Skeleton,
+    plan: TreePlan,
+    order: assemble::Order,
+}
+
+impl<'a> OocBuild<'a> {
+    /// Checks the options and gathers the scene-wide facts: schema, material table, block size.
+    fn new(
+        soup: &'a Soup,
+        kd: &'a KdBuildOptions,
+        layout: &'a LayoutOptions,
+        chunk_triangles: u64,
+        dir: &'a Path,
+    ) -> Result<OocBuild<'a>, OocError> {
+        kd.check()?;
+        let block_size = 1usize << layout.write.block_size_log2.min(20);
+        oocfmt::WriteOptions::default()
+            .with_block_size(1u64 << layout.write.block_size_log2.min(63))?;
+        let materials = soup.used_materials.iter().any(Option::is_some);
+        let (_, table) = compact_materials(&soup.used_materials, soup.materials.clone())?;
+        let schema = Schema {
+            vertex_normals: soup.normals,
+            vertex_colours: soup.colours,
+            triangle_materials: materials,
+            six_sample_voxels: false,
+        };
+        let facts = SceneFacts {
+            schema: PartSchema {
+                normals: soup.normals,
+                colours: soup.colours,
+                materials: materials.then(|| table.clone()),
+            },
+            material_index: materials.then(|| {
+                soup.used_materials
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &m)| (m, i as u32))
+                    .collect::<FxHashMap<_, _>>()
+            }),
+            attrs: schema.triangle_attributes(),
+            block_size,
+        };
+        Ok(OocBuild {
+            soup,
+            kd,
+            layout,
+            budget: chunk_triangles.max(1),
+            dir,
+            block_size,
+            schema,
+            materials: table,
+            facts,
+        })
+    }
+
+    /// Median-splits the soup into chunks within the budget, fitting the R-LOD planes of the
+    /// split nodes that are LOD nodes on the way when the build makes R-LODs.
+    fn split(&self, progress: &mut dyn Progress) -> Result<split::TopTree, OocError> {
+        let colour = |t: &InputTriangle| self.facts.colour(t);
+        let rlods = self.layout.write.lod.rlod.then_some(split::RlodMoments {
+            treelet_height: self.layout.treelet_height,
+            colour: &colour,
+        });
+        split::split(
+            &self.soup.path,
+            self.soup.count,
+            self.soup.bounds,
+            self.budget,
+            self.dir,
+            rlods.as_ref(),
+            progress,
+        )
+    }
+
+    /// Builds every chunk in turn and spills its blocks; each chunk answers the rays of the
+    /// top LOD nodes above it and widens their R-LOD `planes` by its deviation.
+    fn build_chunks(
+        &self,
+        tree: &split::TopTree,
+        mut planes: BTreeMap<usize, PlaneFit>,
+        progress: &mut dyn Progress,
+    ) -> Result<Chunks, OocError> {
+        let mut top_lod = top::top_lod_nodes(
+            tree,
+            self.soup.bounds,
+            self.layout.treelet_height,
+            self.layout.voxel_threshold,
+        );
+        let mut builder = ChunkBuilder {
+            facts: &self.facts,
+            kd: self.kd,
+            layout: self.layout,
+            spill: BlockSpill::create(&self.dir.join("blocks.spill"))?,
+        };
+        let mut outs: Vec<ChunkOut> = Vec::with_capacity(tree.chunks.len());
+        let mut chunk_proxies = Vec::new();
+        let mut proxy_count = 0u32;
+        progress.phase("chunks", Some(tree.chunks.len() as u64));
+        for (i, c) in tree.chunks.iter().enumerate() {
+            let mut rays: Vec<&mut [chunk::PendingRay]> = top_lod
+                .iter_mut()
+                .filter(|t| c.ancestors.contains(&t.node))
+                .map(|t| t.rays.as_mut_slice())
+                .collect();
+            let above: Vec<(usize, PlaneFit)> = c
+                .ancestors
+                .iter()
+                .filter_map(|a| planes.get(a).map(|p| (*a, *p)))
+                .collect();
+            let mut out = builder.build(c, proxy_count, &mut rays, &above)?;
+            for (node, piece) in &out.plane_pieces {
+                if let Some(p) = planes.get_mut(node) {
+                    p.widen(piece);
+                }
+            }
+            std::fs::remove_file(&c.path).map_err(|e| OocError::spill(&c.path, e))?;
+            let n = u32::try_from(out.proxies.len() / oocfmt::records::PROXY_LEN)
+                .map_err(|_| LayoutError::TooMany("proxies"))?;
+            proxy_count = proxy_count
+                .checked_add(n)
+                .ok_or(LayoutError::TooMany("proxies"))?;
+            chunk_proxies.push(std::mem::take(&mut out.proxies));
+            outs.push(out);
+            progress.advance(i as u64 + 1);
+        }
+        progress.finish_phase();
+        Ok(Chunks {
+            outs,
+            proxies: chunk_proxies,
+            proxy_count,
+            spill: builder.spill,
+            top_lod,
+            planes,
+        })
+    }
+
+    /// The LOD data (and R-LOD) of each top LOD node, from its answered rays and the area of
+    /// the chunks below it.
+    fn top_lod_data(
+        &self,
+        tree: &split::TopTree,
+        chunks: &Chunks,
+    ) -> Result<BTreeMap<usize, (LodData, Option<Rlod>)>, OocError> {
+        let mut given = BTreeMap::new();
+        for t in &chunks.top_lod {
+            let area: f64 = tree
+                .chunks
+                .iter()
+                .zip(&chunks.outs)
+                .filter(|(c, _)| c.ancestors.contains(&t.node))
+                .map(|(_, o)| o.area)
+                .sum();
+            let rlod = match chunks.planes.get(&t.node) {
+                Some(p) => Some(p.record(t.cell.half_diagonal_up().unwrap_or(f32::MAX))),
+                None if self.layout.write.lod.rlod => {
+                    return Err(LayoutError::Internal("a top LOD node has no R-LOD plane").into())
+                }
+                None => None,
+            };
+            given.insert(
+                t.node,
+                (
+                    top::finish_top_lod(t, self.layout.voxel_threshold, area),
+                    rlod,
+                ),
+            );
+        }
+        Ok(given)
+    }
+
+    /// Plans the top: the median-split nodes and the chunks' top treelets as one skeleton,
+    /// laid out by the ordinary planner, then the file order of every block.
+    fn plan_top(
+        &self,
+        tree: &split::TopTree,
+        chunks: &Chunks,
+        given: &BTreeMap<usize, (LodData, Option<Rlod>)>,
+    ) -> Result<TopPlan, OocError> {
+        let skel = top::skeleton(tree, &chunks.outs, given, self.soup.bounds)?;
+        let external: BTreeMap<NodeId, (u32, u32)> = skel
+            .frontier
+            .iter()
+            .map(|(&id, &(_, block, treelet))| (id, (block, treelet)))
+            .collect();
+        let lod_of = |id: NodeId| skel.lod.get(&id).copied();
+        let plan = plan_tree_with(
+            &skel.tree,
+            &PlanSpec {
+                treelet_height: self.layout.treelet_height,
+                block_size: self.block_size,
+                max_proxies: usize::MAX,
+                depth_offset: 0,
+                proxy_base: chunks.proxy_count,
+                detach_root: false,
+                first_level: 0,
+                lod: LodSource::Given {
+                    data: &lod_of,
+                    kinds: self.layout.write.lod,
+                },
+                external: &external,
+            },
+        )?;
+        let top_levels: Vec<u16> = plan.blocks.iter().map(|b| b.level).collect();
+        let order = assemble::order(&top_levels, &chunks.outs)?;
+        Ok(TopPlan { skel, plan, order })
+    }
+
+    /// The proxy records in id order: each chunk's, their node blocks made final, then the
+    /// top's.
+    fn gather_proxies(
+        &self,
+        chunk_proxies: Vec<Vec<u8>>,
+        top: &TopPlan,
+    ) -> Result<Vec<u8>, OocError> {
+        let mut proxies = Vec::new();
+        for (i, mut records) in chunk_proxies.into_iter().enumerate() {
+            top.order.patch_proxies(i, &mut records)?;
+            proxies.extend_from_slice(&records);
+        }
+        chunk::proxy_records(&top.plan, &mut proxies)?;
+        Ok(proxies)
+    }
+
+    /// The counts of the whole tree (the top's treelets and every chunk's) and the build's
+    /// statistics.
+    fn tally(
+        &self,
+        tree: &split::TopTree,
+        chunks: &Chunks,
+        top: &TopPlan,
+    ) -> (ChunkCounts, OocStats) {
+        let mut counts = ChunkCounts::default();
+        for b in &top.plan.blocks {
+            for &t in &b.treelets {
+                chunk::count_treelet(&top.plan, t, &mut counts);
+            }
+        }
+        let mut stats = OocStats {
+            chunks: chunks.outs.len() as u64,
+            chunk_budget_triangles: self.budget,
+            oversized_chunks: tree.oversized.len() as u64,
+            top_lod_nodes: chunks.top_lod.len() as u64,
+            ..OocStats::default()
+        };
+        for (c, o) in tree.chunks.iter().zip(&chunks.outs) {
+            add_counts(&mut counts, &o.counts);
+            stats.largest_chunk_triangles = stats.largest_chunk_triangles.max(c.count);
+            stats.split_copies += c.count;
+        }
+        stats.split_copies = stats.split_copies.saturating_sub(self.soup.count);
+        (counts, stats)
+    }
+
+    /// The container's metadata.
+    fn metadata(
+        &self,
+        counts: &ChunkCounts,
+        order: &assemble::Order,
+        proxy_bytes: usize,
+        stats: &OocStats,
+    ) -> Metadata {
+        let (kd, layout, bounds) = (self.kd, self.layout, self.soup.bounds);
+        let mut schema = self.schema;
+        schema.six_sample_voxels = counts.voxels_six > 0;
+        let mut params = kd.params();
+        params.extend(lod_params(layout.write.lod, layout.voxel_threshold));
+        params.push((
+            "triangles_per_proxy".into(),
+            layout.triangles_per_proxy.to_string(),
+        ));
+        params.push((
+            "out_of_core".into(),
+            format!(
+                "{} chunks of at most {} triangles; median-split LOD nodes sampled with {} rays per face",
+                stats.chunks,
+                stats.chunk_budget_triangles,
+                crate::lod::FACE_RAYS_MAX
+            ),
+        ));
+        params.extend(layout.params.iter().cloned());
+        Metadata {
+            scene: Scene {
+                bounds_min: bounds.min,
+                bounds_max: bounds.max,
+                origin: layout.origin,
+            },
+            root: Some(TreeletRef {
+                block: order.top.first().copied().unwrap_or(0),
+                treelet: 0,
+            }),
+            counts: Counts {
+                triangles: counts.triangles.primaries,
+                triangle_records: counts.triangles.triangles,
+                vertices: counts.triangles.vertices,
+                basic_nodes: counts.basic_nodes,
+                lod_nodes: counts.lod_nodes,
+                leaves: counts.leaves,
+                voxels_single: counts.voxels_single,
+                voxels_six: counts.voxels_six,
+                proxies: (proxy_bytes / oocfmt::records::PROXY_LEN) as u64,
+                treelets: counts.treelets,
+                depth: counts.depth,
+                lod_levels: order.levels,
+            },
+            schema,
+            materials: self.materials.clone(),
+            build: Build {
+                treelet_height: layout.treelet_height,
+                max_leaf_triangles: kd.max_leaf_triangles,
+                params,
+            },
+            provenance: Provenance {
+                generator: layout.generator.clone(),
+                sources: layout.sources.clone(),
+            },
+        }
+    }
+}
+
+impl TopPlan {
+    /// Gives the top plan's nodes their final block ids: their own block, and the block of
+    /// their children (a chunk's block below a frontier node, a top block below another LOD
+    /// node).
+    fn assign_final_ids(&mut self) -> Result<(), LayoutError> {
+        let order = &self.order;
+        let top_block = |local: u32| {
+            order
+                .top
+                .get(local as usize)
+                .copied()
+                .ok_or(LayoutError::Internal("a top block id is out of range"))
+        };
+        for k in 0..self.plan.info.len() {
+            let id = NodeId(k as u32);
+            let info = self.plan.info(id);
+            let block = top_block(info.block)?;
+            let child_block = match self.skel.frontier.get(&id) {
+                Some(&(chunk, local, _)) => order
+                    .chunk_treelets
+                    .get(chunk)
+                    .and_then(|m| m.get(local as usize))
+                    .copied()
+                    .ok_or(LayoutError::Internal(
+                        "a frontier node's child block is missing",
+                    ))?,
+                None if info.role == Role::Lod => top_block(info.child_block)?,
+                None => info.child_block,
+            };
+            if let Some(slot) = self.plan.info.get_mut(k) {
+                slot.block = block;
+                slot.child_block = child_block;
+            }
+        }
+        Ok(())
+    }
+
+    /// The top's treelet blocks, encoded with final ids: the leaves of the chunks' top
+    /// treelets pointing at their final triangle blocks.
+    fn encode(&self) -> Result<Vec<RawBlock>, LayoutError> {
+        let mut leaves: Vec<Option<LeafRef>> = vec![None; self.skel.tree.nodes().len()];
+        for (&id, &(chunk, r)) in &self.skel.leaves {
+            let block = self
+                .order
+                .chunk_triangles
+                .get(chunk)
+                .and_then(|m| m.get(r.block as usize))
+                .copied()
+                .ok_or(LayoutError::Internal("a leaf's triangle block is missing"))?;
+            if let Some(slot) = leaves.get_mut(id.index()) {
+                *slot = Some(LeafRef { block, ..r });
+            }
+        }
+        self.plan
+            .blocks
+            .iter()
+            .map(|b| {
+                Ok(RawBlock {
+                    kind: BlockKind::Treelet,
+                    level: b.level,
+                    item_count: u32::try_from(b.treelets.len())
+                        .map_err(|_| LayoutError::TooMany("treelets"))?,
+                    raw: encode_treelets(b, &self.skel.tree, &self.plan, &leaves, 0)?,
+                })
+            })
+            .collect()
+    }
 }
 
 fn add_counts(total: &mut ChunkCounts, c: &ChunkCounts) {
@@ -350,71 +545,4 @@ fn add_counts(total: &mut ChunkCounts, c: &ChunkCounts) {
     total.triangles.primaries += c.triangles.primaries;
     total.triangles.triangles += c.triangles.triangles;
     total.triangles.vertices += c.triangles.vertices;
-}
-
-#[allow(clippy::too_many_arguments)]
-fn metadata(
-    counts: &ChunkCounts,
-    order: &assemble::Order,
-    proxy_bytes: usize,
-    mut schema: Schema,
-    materials: Vec<oocfmt::metadata::Material>,
-    kd: &KdBuildOptions,
-    layout: &LayoutOptions,
-    stats: &OocStats,
-    bounds: oocfmt_meshio::mesh::Bounds,
-) -> Metadata {
-    schema.six_sample_voxels = counts.voxels_six > 0;
-    let mut params = kd.params();
-    params.extend(lod_params(layout.write.lod, layout.voxel_threshold));
-    params.push((
-        "triangles_per_proxy".into(),
-        layout.triangles_per_proxy.to_string(),
-    ));
-    params.push((
-        "out_of_core".into(),
-        format!(
-            "{} chunks of at most {} triangles; median-split LOD nodes sampled with {} rays per face",
-            stats.chunks,
-            stats.chunk_budget_triangles,
-            crate::lod::FACE_RAYS_MAX
-        ),
-    ));
-    params.extend(layout.params.iter().cloned());
-    Metadata {
-        scene: Scene {
-            bounds_min: bounds.min,
-            bounds_max: bounds.max,
-            origin: layout.origin,
-        },
-        root: Some(TreeletRef {
-            block: order.top.first().copied().unwrap_or(0),
-            treelet: 0,
-        }),
-        counts: Counts {
-            triangles: counts.triangles.primaries,
-            triangle_records: counts.triangles.triangles,
-            vertices: counts.triangles.vertices,
-            basic_nodes: counts.basic_nodes,
-            lod_nodes: counts.lod_nodes,
-            leaves: counts.leaves,
-            voxels_single: counts.voxels_single,
-            voxels_six: counts.voxels_six,
-            proxies: (proxy_bytes / oocfmt::records::PROXY_LEN) as u64,
-            treelets: counts.treelets,
-            depth: counts.depth,
-            lod_levels: order.levels,
-        },
-        schema,
-        materials,
-        build: Build {
-            treelet_height: layout.treelet_height,
-            max_leaf_triangles: kd.max_leaf_triangles,
-            params,
-        },
-        provenance: Provenance {
-            generator: layout.generator.clone(),
-            sources: layout.sources.clone(),
-        },
-    }
 }

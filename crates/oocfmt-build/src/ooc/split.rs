@@ -80,67 +80,32 @@ pub fn split(
     let mut top = TopTree::default();
     let mut done = 0u64;
     progress.phase("split", Some(count));
-    // (node index to fill, file, count, cell, depth, ancestors)
-    let mut stack = vec![(0usize, path.to_path_buf(), count, cell, 0u32, Vec::new())];
+    let mut stack = vec![Pending {
+        node: 0,
+        file: path.to_path_buf(),
+        count,
+        cell,
+        depth: 0,
+        ancestors: Vec::new(),
+    }];
     top.nodes.push(TopNode::Chunk(0));
-    while let Some((node, file, n, cell, depth, ancestors)) = stack.pop() {
-        let axis = cell.longest_axis();
-        let (lo, hi) = (cell.min[axis], cell.max[axis]);
-        let mid = (lo + (hi - lo) * 0.5).clamp(lo, hi);
-        let splittable = n > budget && depth < MAX_SPLIT_DEPTH && lo < mid && mid < hi;
+    while let Some(p) = stack.pop() {
+        let cut = Cut::middle(&p.cell);
+        let splittable = p.count > budget && p.depth < MAX_SPLIT_DEPTH && cut.inside();
         let mut moments = rlods
-            .filter(|r| splittable && is_lod_depth(depth, r.treelet_height))
-            .map(|r| (PlaneMoments::new(cell), r.colour));
+            .filter(|r| splittable && is_lod_depth(p.depth, r.treelet_height))
+            .map(|r| (PlaneMoments::new(p.cell), r.colour));
         let halves = if splittable {
-            Some(split_file(
-                &file,
-                n,
-                &cell,
-                axis,
-                mid,
-                dir,
-                top.nodes.len(),
-                moments.as_mut(),
-            )?)
+            let id = top.nodes.len();
+            Some(split_file(&p, &cut, dir, id, moments.as_mut())?)
         } else {
             None
         };
         match halves {
             // Some triangles stayed on one side only: the split made progress.
-            Some([l, r]) if l.1 < n || r.1 < n => {
-                std::fs::remove_file(&file).map_err(|e| OocError::spill(&file, e))?;
-                let (lc, rc) = cell.split(axis, mid);
-                let mut children = [None, None];
-                let mut path_down = ancestors.clone();
-                path_down.push(node);
-                // Pushed right first so the left subtree is numbered and finished first.
-                let mut pending = Vec::new();
-                for (slot, ((f, c), cc)) in
-                    children.iter_mut().zip([l, r].into_iter().zip([lc, rc]))
-                {
-                    if c == 0 {
-                        std::fs::remove_file(&f).map_err(|e| OocError::spill(&f, e))?;
-                        continue;
-                    }
-                    let id = top.nodes.len();
-                    // Filled in when the child's own turn comes.
-                    top.nodes.push(TopNode::Chunk(usize::MAX));
-                    *slot = Some(id);
-                    pending.push((id, f, c, cc));
-                }
-                if let Some((m, _)) = moments {
-                    top.planes.insert(node, m.plane());
-                }
-                if let Some(n) = top.nodes.get_mut(node) {
-                    *n = TopNode::Inner {
-                        axis: axis as u8,
-                        split: mid,
-                        children,
-                    };
-                }
-                for (id, f, c, cc) in pending.into_iter().rev() {
-                    stack.push((id, f, c, cc, depth + 1, path_down.clone()));
-                }
+            Some([l, r]) if l.1 < p.count || r.1 < p.count => {
+                let plane = moments.map(|(m, _)| m.plane());
+                top.divide(p, &cut, [l, r], plane, &mut stack)?;
             }
             other => {
                 if let Some([l, r]) = other {
@@ -148,20 +113,8 @@ pub fn split(
                         std::fs::remove_file(&f).map_err(|e| OocError::spill(&f, e))?;
                     }
                 }
-                if n > budget {
-                    top.oversized.push(top.chunks.len());
-                }
-                if let Some(slot) = top.nodes.get_mut(node) {
-                    *slot = TopNode::Chunk(top.chunks.len());
-                }
-                top.chunks.push(Chunk {
-                    path: file,
-                    count: n,
-                    cell,
-                    depth,
-                    ancestors,
-                });
-                done += n;
+                done += p.count;
+                top.finish_chunk(p, budget);
                 progress.advance(done.min(count));
             }
         }
@@ -170,27 +123,132 @@ pub fn split(
     Ok(top)
 }
 
-/// One streaming pass: every record of `file` to the side(s) of `axis = mid` its clipped part
-/// reaches, and into `moments` when given. Returns each side's file and count.
-#[allow(clippy::too_many_arguments)]
-fn split_file(
-    file: &Path,
-    n: u64,
-    cell: &Bounds,
+/// A cell waiting to be split or kept: the top node to fill, its spill file and record count,
+/// its bounds, its depth and the top nodes above it.
+struct Pending {
+    node: usize,
+    file: PathBuf,
+    count: u64,
+    cell: Bounds,
+    depth: u32,
+    ancestors: Vec<usize>,
+}
+
+/// A cell's median cut: the middle of its longest axis.
+struct Cut {
+    cell: Bounds,
     axis: usize,
     mid: f32,
+}
+
+impl Cut {
+    fn middle(cell: &Bounds) -> Cut {
+        let axis = cell.longest_axis();
+        let (lo, hi) = (cell.min[axis], cell.max[axis]);
+        Cut {
+            cell: *cell,
+            axis,
+            mid: (lo + (hi - lo) * 0.5).clamp(lo, hi),
+        }
+    }
+
+    /// The cut leaves room on both sides.
+    fn inside(&self) -> bool {
+        let (lo, hi) = (self.cell.min[self.axis], self.cell.max[self.axis]);
+        lo < self.mid && self.mid < hi
+    }
+}
+
+impl TopTree {
+    /// Makes `p`'s node an inner node cut at `cut` over the non-empty `halves` (file, count),
+    /// with the R-LOD `plane` fitted on the way, and stacks the halves, left on top. The input
+    /// file and any empty half's file are deleted.
+    fn divide(
+        &mut self,
+        p: Pending,
+        cut: &Cut,
+        halves: [(PathBuf, u64); 2],
+        plane: Option<PlaneFit>,
+        stack: &mut Vec<Pending>,
+    ) -> Result<(), OocError> {
+        std::fs::remove_file(&p.file).map_err(|e| OocError::spill(&p.file, e))?;
+        let (lc, rc) = p.cell.split(cut.axis, cut.mid);
+        let mut children = [None, None];
+        let mut path_down = p.ancestors;
+        path_down.push(p.node);
+        // Pushed right first so the left subtree is numbered and finished first.
+        let mut pending = Vec::new();
+        for (slot, ((f, c), cc)) in children.iter_mut().zip(halves.into_iter().zip([lc, rc])) {
+            if c == 0 {
+                std::fs::remove_file(&f).map_err(|e| OocError::spill(&f, e))?;
+                continue;
+            }
+            let id = self.nodes.len();
+            // Filled in when the child's own turn comes.
+            self.nodes.push(TopNode::Chunk(usize::MAX));
+            *slot = Some(id);
+            pending.push((id, f, c, cc));
+        }
+        if let Some(plane) = plane {
+            self.planes.insert(p.node, plane);
+        }
+        if let Some(n) = self.nodes.get_mut(p.node) {
+            *n = TopNode::Inner {
+                axis: cut.axis as u8,
+                split: cut.mid,
+                children,
+            };
+        }
+        for (node, file, count, cell) in pending.into_iter().rev() {
+            stack.push(Pending {
+                node,
+                file,
+                count,
+                cell,
+                depth: p.depth + 1,
+                ancestors: path_down.clone(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Keeps `p` as a chunk (an oversized one when it is over the `budget`).
+    fn finish_chunk(&mut self, p: Pending, budget: u64) {
+        if p.count > budget {
+            self.oversized.push(self.chunks.len());
+        }
+        if let Some(slot) = self.nodes.get_mut(p.node) {
+            *slot = TopNode::Chunk(self.chunks.len());
+        }
+        self.chunks.push(Chunk {
+            path: p.file,
+            count: p.count,
+            cell: p.cell,
+            depth: p.depth,
+            ancestors: p.ancestors,
+        });
+    }
+}
+
+/// One streaming pass: every record of `p`'s file to the side(s) of the `cut` its clipped part
+/// reaches, and into `moments` when given. The sides' files are named after top node `id`.
+/// Returns each side's file and count.
+fn split_file(
+    p: &Pending,
+    cut: &Cut,
     dir: &Path,
     id: usize,
     mut moments: Option<&mut (PlaneMoments, TriangleColour)>,
 ) -> Result<[(PathBuf, u64); 2], OocError> {
+    let (axis, mid) = (cut.axis, cut.mid);
     let mut left = SoupWriter::create(&dir.join(format!("n{id}-l.soup")))?;
     let mut right = SoupWriter::create(&dir.join(format!("n{id}-r.soup")))?;
-    for record in SoupReader::open(file, n)? {
+    for record in SoupReader::open(&p.file, p.count)? {
         let t = record?;
         if let Some((m, colour)) = moments.as_deref_mut() {
             m.add(t.triangle.positions, || colour(&t.triangle));
         }
-        let part = clip_triangle(t.triangle.positions, cell);
+        let part = clip_triangle(t.triangle.positions, &cut.cell);
         let (pmin, pmax) = (part.min[axis], part.max[axis]);
         let in_plane = pmin == mid && pmax == mid;
         let goes_left = pmin < mid || in_plane;

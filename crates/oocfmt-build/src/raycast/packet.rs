@@ -36,8 +36,16 @@ impl Tracer<'_> {
             *r = flat_reach(ray, eps);
         }
         let Some(first) = rays.first() else { return };
-        let (o, inv, forward) = (first.origin[axis], first.inv[axis], first.dir[axis] > 0.0);
-        let t0 = 0.0;
+        let face = FaceRays {
+            rays,
+            reach,
+            axis,
+            origin: first.origin[axis],
+            inv: first.inv[axis],
+            forward: first.dir[axis] > 0.0,
+            t1,
+            eps,
+        };
         let mut done = 0u64;
         let all = if n == PACKET_MAX {
             u64::MAX
@@ -45,58 +53,26 @@ impl Tracer<'_> {
             (1u64 << n) - 1
         };
         self.packet_stack.clear();
-        self.packet_stack.push((root, t0, t1, all));
-        while let Some((mut id, tmin, mut tmax, mut mask)) = self.packet_stack.pop() {
-            mask &= !done;
-            while mask != 0 {
+        self.packet_stack.push((root, 0.0, t1, all));
+        while let Some((mut id, tmin, tmax, mask)) = self.packet_stack.pop() {
+            let mut span = Span {
+                tmin,
+                tmax,
+                mask: mask & !done,
+            };
+            while span.mask != 0 {
                 match self.tree.node(id) {
                     Some(&KdNode::Inner {
                         axis: split_axis,
                         split,
-                        children: [l, r],
+                        children,
                     }) => {
                         let a = usize::from(split_axis).min(2);
                         let s = f64::from(split);
-                        let next = if a == axis {
-                            let ts = (s - o) * inv;
-                            let (near, far) = if forward { (l, r) } else { (r, l) };
-                            if ts > tmax {
-                                near
-                            } else if ts < tmin {
-                                far
-                            } else {
-                                if let Some(f) = far {
-                                    self.packet_stack.push((f, ts, tmax, mask));
-                                }
-                                tmax = ts;
-                                near
-                            }
+                        let next = if a == face.axis {
+                            self.split_across(&face, s, children, &mut span)
                         } else {
-                            // Parallel to the plane: each ray takes the side holding it, both
-                            // (the low one first) when it runs in the plane.
-                            let (mut low, mut high) = (0u64, 0u64);
-                            for k in bits(mask) {
-                                let ok = rays.get(k).map_or(s, |r| r.origin[a]);
-                                low |= u64::from(ok <= s) << k;
-                                high |= u64::from(ok >= s) << k;
-                            }
-                            let (l, r) = (l.filter(|_| low != 0), r.filter(|_| high != 0));
-                            match (l, r) {
-                                (Some(l), Some(r)) => {
-                                    self.packet_stack.push((r, tmin, tmax, high));
-                                    mask = low;
-                                    Some(l)
-                                }
-                                (Some(l), None) => {
-                                    mask = low;
-                                    Some(l)
-                                }
-                                (None, Some(r)) => {
-                                    mask = high;
-                                    Some(r)
-                                }
-                                (None, None) => None,
-                            }
+                            self.split_along(&face, (a, s), children, &mut span)
                         };
                         match next {
                             Some(c) => id = c,
@@ -105,44 +81,12 @@ impl Tracer<'_> {
                     }
                     Some(KdNode::Leaf { triangles }) => {
                         for &t in triangles {
-                            let Some(c) = self.corners(t) else {
-                                continue;
-                            };
-                            let (lo, hi) = corner_box(&c);
-                            // Most triangles of a leaf lie beside every ray: find the rays
-                            // whose reach meets the triangle's box before any f64 work.
-                            let mut near = 0u64;
-                            for k in bits(mask) {
-                                if let Some((rlo, rhi)) = reach.get(k) {
-                                    let meets = (0..3).all(|a| hi[a] >= rlo[a] && lo[a] <= rhi[a]);
-                                    near |= u64::from(meets) << k;
-                                }
-                            }
-                            if near == 0 {
-                                continue;
-                            }
-                            let p = c.map(|p| p.map(f64::from));
-                            let (e1, e2) = (sub(p[1], p[0]), sub(p[2], p[0]));
-                            for k in bits(near) {
-                                let (Some(ray), Some(best)) = (rays.get(k), hits.get_mut(k)) else {
-                                    continue;
-                                };
-                                let Some((th, u, v)) = moller_trumbore(ray, p[0], e1, e2) else {
-                                    continue;
-                                };
-                                let hit = Hit {
-                                    t: th,
-                                    triangle: t,
-                                    u,
-                                    v,
-                                };
-                                keep_nearer(best, hit, t0, t1, eps);
-                            }
+                            self.test_triangle(&face, t, span.mask, hits);
                         }
-                        for k in bits(mask) {
+                        for k in bits(span.mask) {
                             if hits
                                 .get(k)
-                                .is_some_and(|h| h.is_some_and(|b| b.t <= tmax + eps))
+                                .is_some_and(|h| h.is_some_and(|b| b.t <= span.tmax + eps))
                             {
                                 done |= 1 << k;
                             }
@@ -154,6 +98,130 @@ impl Tracer<'_> {
             }
         }
     }
+
+    /// At a split across the rays' axis at `s`, crossed by every ray at the same distance:
+    /// the child to visit now, the far one stacked when the span reaches it (the span then
+    /// ends at the crossing).
+    #[inline]
+    fn split_across(
+        &mut self,
+        face: &FaceRays,
+        s: f64,
+        [l, r]: [Option<NodeId>; 2],
+        span: &mut Span,
+    ) -> Option<NodeId> {
+        let ts = (s - face.origin) * face.inv;
+        let (near, far) = if face.forward { (l, r) } else { (r, l) };
+        if ts > span.tmax {
+            near
+        } else if ts < span.tmin {
+            far
+        } else {
+            if let Some(f) = far {
+                self.packet_stack.push((f, ts, span.tmax, span.mask));
+            }
+            span.tmax = ts;
+            near
+        }
+    }
+
+    /// At a split of axis `a` at `s`, parallel to the rays: each ray takes the side holding
+    /// it, both (the low one first) when it runs in the plane. Returns the child to visit now,
+    /// the span's rays cut to those going there; the high side is stacked for its rays when
+    /// both are visited.
+    #[inline]
+    fn split_along(
+        &mut self,
+        face: &FaceRays,
+        (a, s): (usize, f64),
+        [l, r]: [Option<NodeId>; 2],
+        span: &mut Span,
+    ) -> Option<NodeId> {
+        let (mut low, mut high) = (0u64, 0u64);
+        for k in bits(span.mask) {
+            let ok = face.rays.get(k).map_or(s, |r| r.origin[a]);
+            low |= u64::from(ok <= s) << k;
+            high |= u64::from(ok >= s) << k;
+        }
+        let (l, r) = (l.filter(|_| low != 0), r.filter(|_| high != 0));
+        match (l, r) {
+            (Some(l), Some(r)) => {
+                self.packet_stack.push((r, span.tmin, span.tmax, high));
+                span.mask = low;
+                Some(l)
+            }
+            (Some(l), None) => {
+                span.mask = low;
+                Some(l)
+            }
+            (None, Some(r)) => {
+                span.mask = high;
+                Some(r)
+            }
+            (None, None) => None,
+        }
+    }
+
+    /// Tests triangle `t` of a leaf against the rays of `mask` whose reach meets its box,
+    /// keeping each ray's nearest hit in `hits`.
+    #[inline]
+    fn test_triangle(&self, face: &FaceRays, t: u32, mask: u64, hits: &mut [Option<Hit>]) {
+        let Some(c) = self.corners(t) else {
+            return;
+        };
+        let (lo, hi) = corner_box(&c);
+        // Most triangles of a leaf lie beside every ray: find the rays whose reach meets the
+        // triangle's box before any f64 work.
+        let mut near = 0u64;
+        for k in bits(mask) {
+            if let Some((rlo, rhi)) = face.reach.get(k) {
+                let meets = (0..3).all(|a| hi[a] >= rlo[a] && lo[a] <= rhi[a]);
+                near |= u64::from(meets) << k;
+            }
+        }
+        if near == 0 {
+            return;
+        }
+        let p = c.map(|p| p.map(f64::from));
+        let (e1, e2) = (sub(p[1], p[0]), sub(p[2], p[0]));
+        for k in bits(near) {
+            let (Some(ray), Some(best)) = (face.rays.get(k), hits.get_mut(k)) else {
+                continue;
+            };
+            let Some((th, u, v)) = moller_trumbore(ray, p[0], e1, e2) else {
+                continue;
+            };
+            let hit = Hit {
+                t: th,
+                triangle: t,
+                u,
+                v,
+            };
+            keep_nearer(best, hit, 0.0, face.t1, face.eps);
+        }
+    }
+}
+
+/// One face's rays, as the packet walk reads them: each ray's reach (the box its segment
+/// sweeps, widened by the tolerance), the axis they run along with the first ray's origin and
+/// reciprocal direction on it, whether they run forward, and the interval [0, `t1`] of every
+/// ray with its tolerance `eps`.
+struct FaceRays<'r> {
+    rays: &'r [Ray],
+    reach: [([f32; 3], [f32; 3]); PACKET_MAX],
+    axis: usize,
+    origin: f64,
+    inv: f64,
+    forward: bool,
+    t1: f64,
+    eps: f64,
+}
+
+/// A node's stretch of the rays, [`tmin`, `tmax`], and the rays (bit k: ray k) visiting it.
+struct Span {
+    tmin: f64,
+    tmax: f64,
+    mask: u64,
 }
 
 /// The axis all `rays` run along, in one direction, from one plane across it; `None` when

@@ -211,6 +211,70 @@ fn colour_byte(x: f64) -> u8 {
     (x.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
+impl Readers<'_> {
+    /// The vertices of triangle `t` (assembled as `assembly`); None when an index is past the
+    /// primitive's `vertices`.
+    fn triangle_vertices(
+        &self,
+        assembly: Assembly,
+        t: usize,
+        vertices: usize,
+    ) -> Option<[usize; 3]> {
+        let slots = corners(assembly, t);
+        let mut v = [0usize; 3];
+        for (k, &slot) in slots.iter().enumerate() {
+            let index = match &self.indices {
+                Some(ix) => ix.index(slot).map(|i| i as usize),
+                None => Some(slot),
+            };
+            match index {
+                Some(i) if i < vertices => v[k] = i,
+                _ => return None,
+            }
+        }
+        Some(v)
+    }
+
+    /// The unit normals of vertices `v`, turned by `normal_matrix` (None: the identity);
+    /// None without normals, or when one does not turn into a unit vector.
+    fn corner_normals(
+        &self,
+        v: &[usize; 3],
+        normal_matrix: Option<&[[f64; 3]; 3]>,
+    ) -> Option<[[f32; 3]; 3]> {
+        let nr = self.normals.as_ref()?;
+        let mut out = Some([[0.0f32; 3]; 3]);
+        for (k, &i) in v.iter().enumerate() {
+            let e = nr.get(i).unwrap_or([f64::NAN; 4]);
+            let n = match normal_matrix {
+                None => Some([e[0] as f32, e[1] as f32, e[2] as f32]),
+                Some(m) => transform_normal(m, [e[0], e[1], e[2]]),
+            };
+            match (n, out.as_mut()) {
+                (Some(n), Some(o)) => o[k] = n,
+                _ => out = None,
+            }
+        }
+        out
+    }
+
+    /// The RGBA bytes of vertices `v` (alpha 255 for RGB colours); None without colours.
+    fn corner_colours(&self, v: &[usize; 3]) -> Option<[[u8; 4]; 3]> {
+        self.colours.as_ref().map(|(cr, ncomp)| {
+            v.map(|i| {
+                let e = cr.get(i).unwrap_or([0.0; 4]);
+                let alpha = if *ncomp == 4 { colour_byte(e[3]) } else { 255 };
+                [
+                    colour_byte(e[0]),
+                    colour_byte(e[1]),
+                    colour_byte(e[2]),
+                    alpha,
+                ]
+            })
+        })
+    }
+}
+
 /// Pushes the triangles of one primitive placed by one node.
 pub(super) fn emit(
     draw: &Draw,
@@ -235,29 +299,18 @@ pub(super) fn emit(
     let world = &instance.world;
     let identity = world.is_identity();
     let mirrored = world.determinant() < 0.0;
-    let normal_matrix = world.normal_matrix();
+    let turn = world.normal_matrix();
+    // None: normals are taken as they are.
+    let normal_matrix = (!identity).then_some(&turn);
     for t in 0..triangles {
         if let Some(item) = at.item.as_mut() {
             item.truncate(base.len());
             let _ = write!(item, " triangle {t}");
         }
-        let slots = corners(draw.assembly, t);
-        let mut v = [0usize; 3];
-        let mut in_range = true;
-        for (k, &slot) in slots.iter().enumerate() {
-            let index = match &r.indices {
-                Some(ix) => ix.index(slot).map(|i| i as usize),
-                None => Some(slot),
-            };
-            match index {
-                Some(i) if i < vertices => v[k] = i,
-                _ => in_range = false,
-            }
-        }
-        if !in_range {
+        let Some(v) = r.triangle_vertices(draw.assembly, t, vertices) else {
             sink.reject(DropReason::IndexOutOfRange, &at)?;
             continue;
-        }
+        };
         let mut positions = [[0.0f32; 3]; 3];
         for (p, &i) in positions.iter_mut().zip(&v) {
             let e = r.positions.get(i).unwrap_or([f64::NAN; 4]);
@@ -268,41 +321,10 @@ pub(super) fn emit(
             };
             *p = sink.place(q);
         }
-        let normals = match &r.normals {
-            Some(nr) => {
-                let mut out = Some([[0.0f32; 3]; 3]);
-                for (k, &i) in v.iter().enumerate() {
-                    let e = nr.get(i).unwrap_or([f64::NAN; 4]);
-                    let n = if identity {
-                        Some([e[0] as f32, e[1] as f32, e[2] as f32])
-                    } else {
-                        transform_normal(&normal_matrix, [e[0], e[1], e[2]])
-                    };
-                    match (n, out.as_mut()) {
-                        (Some(n), Some(o)) => o[k] = n,
-                        _ => out = None,
-                    }
-                }
-                out
-            }
-            None => None,
-        };
-        let colours = r.colours.as_ref().map(|(cr, ncomp)| {
-            v.map(|i| {
-                let e = cr.get(i).unwrap_or([0.0; 4]);
-                let alpha = if *ncomp == 4 { colour_byte(e[3]) } else { 255 };
-                [
-                    colour_byte(e[0]),
-                    colour_byte(e[1]),
-                    colour_byte(e[2]),
-                    alpha,
-                ]
-            })
-        });
         let mut tri = InputTriangle {
             positions,
-            normals,
-            colours,
+            normals: r.corner_normals(&v, normal_matrix),
+            colours: r.corner_colours(&v),
             material,
             hint: None,
         };
