@@ -1,6 +1,6 @@
 //! Fuzz properties: one function per cargo-fuzz target, each "never panics" plus the cross-checks
 //! noted on it. This file is the only copy of the target bodies: the targets in `fuzz_targets/`
-//! call it through the `oocfmt_fuzz` library, and `crates/oocfmt/tests/fuzz_corpus.rs` includes it
+//! call it through the `oocfmt_fuzz` library, and `crates/oocfmt/tests/format/fuzz_corpus.rs` includes it
 //! by path (`#[path]`), so `cargo test` replays every corpus and regression input on stable.
 //!
 //! Checksums are skipped explicitly (as a `--cfg fuzzing` build of `oocfmt` also forces) so the

@@ -5,7 +5,7 @@
 //! and the traversal over blocks that are each well formed but do not make a tree.
 //!
 //! The only copy of the target body: `fuzz_targets/render_file.rs` calls it through the
-//! `oocfmt_fuzz` library, and `crates/oocfmt-trace/tests/fuzz_corpus.rs` includes it by path
+//! `oocfmt_fuzz` library, and `crates/oocfmt-trace/tests/trace/fuzz_corpus.rs` includes it by path
 //! (with `props.rs`, whose re-sealing it uses) to replay the inputs on stable.
 
 use std::sync::Arc;

@@ -21,7 +21,7 @@ use crate::intersect::Ray;
 use crate::traverse::{Hit, Surface};
 
 /// γ(n) of the kernel's rounding bound; the self-intersection test of
-/// `tests/secondary.rs` (random triangles from 1e-8 to 1e8, rays in both hemispheres) finds no
+/// `tests/trace/secondary.rs` (random triangles from 1e-8 to 1e8, rays in both hemispheres) finds no
 /// re-hit with γ(1) already, and this keeps a margin of four.
 pub const KERNEL_GAMMA: u32 = 4;
 

@@ -14,7 +14,7 @@ use oocfmt::records::{
 use oocfmt::verify::{verify, Depth, Report, VerifyOptions};
 use oocfmt::{BlockKind, Code, Codec, Metadata, Reader, Severity, WriteOptions, Writer};
 
-/// The fuzz properties (one copy, shared with `fuzz/` and `tests/fuzz_corpus.rs`), which also
+/// The fuzz properties (one copy, shared with `fuzz/` and `tests/format/fuzz_corpus.rs`), which also
 /// hold the re-sealing helpers.
 #[path = "../../../../fuzz/src/props.rs"]
 pub mod props;

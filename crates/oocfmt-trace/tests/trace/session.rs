@@ -5,7 +5,7 @@
 //! the async cache to the blocking cache's image.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::sync::Arc;

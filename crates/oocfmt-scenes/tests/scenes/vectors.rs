@@ -1,6 +1,6 @@
 //! The committed spec vectors must be exactly what the generators produce today.
 //!
-//! `OOCFMT_BLESS=1 cargo test -p oocfmt-scenes --test vectors` rewrites them instead; commit the
+//! `OOCFMT_BLESS=1 cargo test -p oocfmt-scenes --test scenes vectors::` rewrites them instead; commit the
 //! result together with whatever change made them differ (and refresh the `inspect` outputs
 //! beside them).
 

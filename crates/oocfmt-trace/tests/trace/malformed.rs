@@ -4,7 +4,7 @@
 //! tests change LOD nodes in an uncompressed container and read it without block checksums.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;

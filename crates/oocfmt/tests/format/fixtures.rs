@@ -1,7 +1,7 @@
 //! The fixtures of `tests/common` and the spec vectors are valid: deep verify finds nothing in a
 //! fixture (the empty one only warns `TREE_EMPTY`), and every block of every file reads back.
 
-mod common;
+use crate::common;
 
 use common::{
     deep, fixtures, has_error, open_bytes, read_all_blocks, vectors, verify_bytes, TestResult,

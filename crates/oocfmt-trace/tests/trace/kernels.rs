@@ -2,7 +2,7 @@
 //! watertightness on a closed mesh (rays aimed exactly at shared edges and vertices).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 
 use oocfmt_trace::intersect::Ray;
 use proptest::prelude::*;

@@ -2,10 +2,10 @@
 //! targets run (`fuzz/src/props.rs`, included by `tests/common`): every file under
 //! `fuzz/corpus/<target>/` and, in its own test, `fuzz/regressions/<target>/`.
 //!
-//! `OOCFMT_WRITE_CORPUS=1 cargo test -p oocfmt --test fuzz_corpus write_seed_corpus` rewrites the
+//! `OOCFMT_WRITE_CORPUS=1 cargo test -p oocfmt --test format fuzz_corpus::write_seed_corpus` rewrites the
 //! seed corpora from the fixtures and the spec vectors.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 
@@ -29,7 +29,7 @@ fn run_target(target: &str, data: &[u8]) -> TestResult {
         "block_decode" => props::block_decode(data),
         "treelet_decode" => props::treelet_decode(data),
         "triangle_decode" => props::triangle_decode(data),
-        // The tracer's target: `crates/oocfmt-trace/tests/fuzz_corpus.rs` replays it.
+        // The tracer's target: `crates/oocfmt-trace/tests/trace/fuzz_corpus.rs` replays it.
         "render_file" => {}
         other => return Err(format!("unknown fuzz target directory {other}").into()),
     }

@@ -3,7 +3,7 @@
 //! cleanly — an `IO` error, no file under the final name (or the old file there unchanged), no
 //! temporary file left, never garbage data or a bogus verify report.
 
-mod common;
+use crate::common;
 
 use std::fs::File;
 use std::io::{self, BufWriter, Seek, SeekFrom, Write};

@@ -7,9 +7,9 @@
 use std::path::{Path, PathBuf};
 
 #[allow(dead_code)]
-#[path = "../../../fuzz/src/props.rs"]
+#[path = "../../../../fuzz/src/props.rs"]
 mod props;
-#[path = "../../../fuzz/src/render.rs"]
+#[path = "../../../../fuzz/src/render.rs"]
 mod render;
 
 fn fuzz_dir() -> PathBuf {

@@ -2,7 +2,7 @@
 //! through convert and export, the error the report gives bounds what export gives back, and
 //! without re-centring positions stay bit-exact.
 
-mod common;
+use crate::common;
 
 use common::*;
 

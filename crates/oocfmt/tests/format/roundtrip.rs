@@ -3,7 +3,7 @@
 //! 64 KiB — are written, read back through positioned reads and a memory map, and compared
 //! field by field; plus record-level, codec, header, trailer and directory-entry round trips.
 
-mod common;
+use crate::common;
 
 use common::{proptest_config, read_all_blocks, verify_bytes};
 use oocfmt::directory::BlockEntry;

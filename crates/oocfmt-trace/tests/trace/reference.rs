@@ -3,7 +3,7 @@
 //! no pixel goes missing; a corrupted block is survived and reported.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::sync::Arc;

@@ -3,7 +3,7 @@
 //! re-intersection test over triangles from 1e-8 to 1e8, and the `--spp` sampling.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};

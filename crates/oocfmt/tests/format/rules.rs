@@ -2,7 +2,7 @@
 //! corruption tests cover: each test builds a file that breaks exactly that rule (and a control
 //! that keeps it, which must stay clean), and checks the issue code the spec gives it.
 
-mod common;
+use crate::common;
 
 use common::{
     deep, encode_like, fixture, leaf, metadata, metadata_bytes, open_bytes, read_all_blocks,

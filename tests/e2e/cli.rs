@@ -1,7 +1,7 @@
 //! End-to-end tests of the `oocfmt` binary: spec vectors against their expected `inspect --json`,
 //! exit codes, verify reports, and the demo. Set OOCFMT_BLESS=1 to rewrite expected outputs.
 
-mod common;
+use crate::common;
 
 use common::*;
 

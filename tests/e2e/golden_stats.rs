@@ -4,9 +4,9 @@
 //!
 //! The figures follow from every choice the builder makes, so they change whenever the kd-tree,
 //! LOD or layout code changes on purpose. Then check that the new figures are what the change
-//! meant, and re-bless: `OOCFMT_BLESS=1 cargo test -p oocfmt-cli --test golden_stats`.
+//! meant, and re-bless: `OOCFMT_BLESS=1 cargo test -p oocfmt-cli --test e2e golden_stats::`.
 
-mod common;
+use crate::common;
 
 use common::*;
 
@@ -19,7 +19,7 @@ fn golden_dir() -> PathBuf {
 }
 
 const REBLESS: &str = "if the builder changed on purpose, check the new figures and re-bless \
-                       with `OOCFMT_BLESS=1 cargo test -p oocfmt-cli --test golden_stats`";
+                       with `OOCFMT_BLESS=1 cargo test -p oocfmt-cli --test e2e golden_stats::`";
 
 /// Converts `input` (in `dir`) with default options and returns the tree statistics.
 fn stats(dir: &Path, input: &str) -> Value {
@@ -91,7 +91,7 @@ fn check(name: &str, got: &Value) {
     }
     let want = std::fs::read_to_string(&path).unwrap_or_else(|e| {
         panic!(
-            "{}: {e}; write it with `OOCFMT_BLESS=1 cargo test -p oocfmt-cli --test golden_stats`",
+            "{}: {e}; write it with `OOCFMT_BLESS=1 cargo test -p oocfmt-cli --test e2e golden_stats::`",
             path.display()
         )
     });

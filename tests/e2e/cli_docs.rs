@@ -10,7 +10,7 @@
 //! one table), and its flags are table rows (`| `--poe <POE>` | ...`) up to the next heading
 //! that names a command.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::Path;

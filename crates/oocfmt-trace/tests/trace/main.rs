@@ -1,0 +1,14 @@
+//! The tracer's integration tests, one binary (one link instead of nine): caches, kernels against
+//! an f64 reference, hard cases, packets against single rays, references, secondary rays,
+//! walkthrough sessions, malformed files, and the fuzz corpus replayed on stable.
+
+mod caches;
+mod common;
+mod fuzz_corpus;
+mod hard_cases;
+mod kernels;
+mod malformed;
+mod packets;
+mod reference;
+mod secondary;
+mod session;
