@@ -21,6 +21,7 @@ pub use crate::obj_writer::WriteError;
 pub use obj::write_obj;
 pub use ply::write_ply;
 
+/// How [`write_obj`] and [`write_ply`] place positions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ExportOptions {
     /// Add the container's `scene.origin` to positions when it is not zero (then written as
@@ -36,13 +37,19 @@ impl Default for ExportOptions {
     }
 }
 
+/// What an export wrote (printed by `oocfmt export`, as JSON with `--json`).
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct ExportReport {
+    /// Triangles written: the container's primaries, each input triangle once.
     pub triangles: u64,
+    /// Vertices written: those the primaries use, once per triangle block (a vertex that two
+    /// blocks share is written twice).
     pub vertices: u64,
+    /// Triangle blocks read.
     pub triangle_blocks: u64,
     /// Size of the model file (without the `.mtl` beside an OBJ).
     pub bytes: u64,
+    /// Materials written (to the `.mtl` for OBJ, as header comments for PLY).
     pub materials: usize,
     /// The `.mtl` written beside an OBJ, when the container has materials.
     pub mtl: Option<PathBuf>,
@@ -54,30 +61,54 @@ pub struct ExportReport {
     pub max_abs_error: f64,
 }
 
+/// Why an export failed, naming the container (and the block or triangle where one is at
+/// fault).
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
+    /// The container could not be opened or read, or a block is malformed.
     #[error(transparent)]
     Format(#[from] oocfmt::Error),
+    /// The model or `.mtl` file could not be written.
     #[error(transparent)]
     Write(#[from] WriteError),
+    /// The primaries in the triangle blocks do not add up to the metadata's triangle count.
     #[error("{file}: the metadata counts {expected} triangles, but the triangle blocks hold {found} primaries")]
     CountMismatch {
+        /// The container's name.
         file: String,
+        /// The triangle count in the metadata.
         expected: u64,
+        /// The primaries the triangle blocks hold.
         found: u64,
     },
+    /// A triangle names a material past the metadata's material table.
     #[error("{file}: block {block}: triangle {triangle} uses material {material}, but the metadata lists {materials}")]
     MaterialOutOfRange {
+        /// The container's name.
         file: String,
+        /// The id of the triangle block.
         block: u32,
+        /// The triangle's index in its block.
         triangle: usize,
+        /// The material index it names.
         material: u16,
+        /// How many materials the metadata lists.
         materials: usize,
     },
+    /// A PLY export would need vertex indices past `u32::MAX`.
     #[error("{file}: {vertices} vertices, more than the 32-bit indices of PLY can address")]
-    TooManyVertices { file: String, vertices: u64 },
+    TooManyVertices {
+        /// The container's name.
+        file: String,
+        /// The vertices the export would write.
+        vertices: u64,
+    },
+    /// The PLY export's two passes (vertices, then faces) found different counts.
     #[error("{file}: the container changed while it was being exported")]
-    Changed { file: String },
+    Changed {
+        /// The container's name.
+        file: String,
+    },
 }
 
 /// Receives the primaries of a container: vertices numbered from 0 in the order of first use

@@ -6,20 +6,25 @@ use oocfmt::metadata::Material;
 /// point yields that point.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
+    /// The lowest corner: the smallest coordinate on each axis.
     pub min: [f32; 3],
+    /// The highest corner: the largest coordinate on each axis.
     pub max: [f32; 3],
 }
 
 impl Bounds {
+    /// The box around no point: `min` +∞ and `max` −∞ on every axis.
     pub const EMPTY: Bounds = Bounds {
         min: [f32::INFINITY; 3],
         max: [f32::NEG_INFINITY; 3],
     };
 
+    /// True when the box holds no point (`min > max` on some axis).
     pub fn is_empty(&self) -> bool {
         (0..3).any(|a| self.min[a] > self.max[a])
     }
 
+    /// Grows the box to hold `p`.
     pub fn extend(&mut self, p: [f32; 3]) {
         for ((lo, hi), c) in self.min.iter_mut().zip(&mut self.max).zip(p) {
             *lo = lo.min(c);
@@ -27,6 +32,7 @@ impl Bounds {
         }
     }
 
+    /// The smallest box holding every point of `points` ([`Bounds::EMPTY`] for none).
     pub fn of_points(points: &[[f32; 3]]) -> Bounds {
         let mut b = Bounds::EMPTY;
         for &p in points {
@@ -97,41 +103,77 @@ fn next_up(x: f32) -> f32 {
 /// What makes a mesh unusable; the first problem found is reported.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MeshError {
+    /// A vertex position has a NaN or infinite coordinate.
     #[error("vertex {vertex} has a non-finite position {position:?}")]
-    PositionNotFinite { vertex: usize, position: [f32; 3] },
+    PositionNotFinite {
+        /// The vertex's index in [`Mesh::positions`].
+        vertex: usize,
+        /// Its position.
+        position: [f32; 3],
+    },
+    /// A vertex normal has a NaN or infinite component.
     #[error("vertex {vertex} has a non-finite normal {normal:?}")]
-    NormalNotFinite { vertex: usize, normal: [f32; 3] },
+    NormalNotFinite {
+        /// The vertex's index.
+        vertex: usize,
+        /// Its normal.
+        normal: [f32; 3],
+    },
+    /// A triangle names a vertex past [`Mesh::positions`].
     #[error("triangle {triangle} names vertex {index}, but there are {vertices} vertices")]
     IndexOutOfRange {
+        /// The triangle's index in [`Mesh::triangles`].
         triangle: usize,
+        /// The vertex index it names.
         index: u32,
+        /// How many vertices the mesh has.
         vertices: usize,
     },
+    /// A per-vertex or per-triangle attribute array has the wrong length.
     #[error("{what} has {len} entries, expected {expected}")]
     AttributeLength {
+        /// Which array: `normals`, `colours` or `materials`.
         what: &'static str,
+        /// Its length.
         len: usize,
+        /// The vertex count (normals, colours) or triangle count (materials).
         expected: usize,
     },
+    /// A triangle's material index is past [`Mesh::material_table`].
     #[error("triangle {triangle} uses material {material}, but the table has {materials}")]
     MaterialOutOfRange {
+        /// The triangle's index.
         triangle: usize,
+        /// The material index it uses.
         material: u16,
+        /// How many materials the table holds.
         materials: usize,
     },
+    /// More triangles than 32-bit triangle ids can number.
     #[error("{triangles} triangles: at most {max} fit 32-bit triangle ids")]
-    TooManyTriangles { triangles: usize, max: usize },
+    TooManyTriangles {
+        /// The mesh's triangle count.
+        triangles: usize,
+        /// The most allowed, `u32::MAX`.
+        max: usize,
+    },
 }
 
 /// A triangle mesh. Normals and colours are per vertex, materials per triangle; each is
 /// optional and the container stores only what is present.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
+    /// Vertex positions, in stored coordinates (world = the scene origin + position).
     pub positions: Vec<[f32; 3]>,
+    /// Each triangle's three indices into `positions`.
     pub triangles: Vec<[u32; 3]>,
+    /// One normal per vertex, when the input has normals.
     pub normals: Option<Vec<[f32; 3]>>,
+    /// One RGBA colour per vertex (value / 255), when the input has colours.
     pub colours: Option<Vec<[u8; 4]>>,
+    /// One index into `material_table` per triangle, when the input has materials.
     pub materials: Option<Vec<u16>>,
+    /// The materials `materials` indexes.
     pub material_table: Vec<Material>,
 }
 
@@ -225,19 +267,23 @@ impl Mesh {
         ])
     }
 
+    /// The box around triangle `t`'s corners ([`Bounds::EMPTY`] when `t` is out of range).
     pub fn triangle_bounds(&self, t: usize) -> Bounds {
         self.corners(t)
             .map_or(Bounds::EMPTY, |c| Bounds::of_points(&c))
     }
 
+    /// Whether the mesh has vertex normals.
     pub fn has_normals(&self) -> bool {
         self.normals.is_some()
     }
 
+    /// Whether the mesh has vertex colours.
     pub fn has_colours(&self) -> bool {
         self.colours.is_some()
     }
 
+    /// Whether the mesh has per-triangle materials.
     pub fn has_materials(&self) -> bool {
         self.materials.is_some()
     }

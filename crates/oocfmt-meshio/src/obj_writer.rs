@@ -15,7 +15,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 #[derive(Debug, thiserror::Error)]
 #[error("{}: {source}", path.display())]
 pub struct WriteError {
+    /// The file the caller asked for (not the temporary name written under).
     pub path: PathBuf,
+    /// The failure.
     pub source: io::Error,
 }
 
@@ -32,6 +34,8 @@ pub struct AtomicFile {
 }
 
 impl AtomicFile {
+    /// Creates a fresh temporary file beside `target` (named `.NAME.PID-N.partial`); `target`
+    /// itself is untouched until [`AtomicFile::commit`].
     pub fn create(target: &Path) -> Result<AtomicFile, WriteError> {
         let fail = |source| WriteError {
             path: target.to_path_buf(),
@@ -62,6 +66,7 @@ impl AtomicFile {
         })
     }
 
+    /// The path the file takes when committed.
     pub fn target(&self) -> &Path {
         &self.target
     }
@@ -143,9 +148,13 @@ impl Drop for AtomicFile {
 /// Counts of what an [`ObjWriter`] wrote.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ObjStats {
+    /// `v` lines written.
     pub vertices: u64,
+    /// `vn` lines written.
     pub normals: u64,
+    /// `f` lines written.
     pub faces: u64,
+    /// Bytes written, the file's size once finished.
     pub bytes: u64,
 }
 
@@ -157,6 +166,7 @@ pub struct ObjWriter {
 }
 
 impl ObjWriter {
+    /// Starts an OBJ file that appears at `path` only when [`ObjWriter::finish`] succeeds.
     pub fn create(path: &Path) -> Result<ObjWriter, WriteError> {
         Ok(ObjWriter {
             out: AtomicFile::create(path)?,
@@ -164,6 +174,7 @@ impl ObjWriter {
         })
     }
 
+    /// What has been written so far.
     pub fn stats(&self) -> ObjStats {
         ObjStats {
             bytes: self.out.bytes(),
@@ -188,14 +199,17 @@ impl ObjWriter {
         Ok(())
     }
 
+    /// `mtllib NAME`: the material library the faces' `usemtl` names come from.
     pub fn mtllib(&mut self, file_name: &str) -> Result<(), WriteError> {
         self.put(format_args!("mtllib {file_name}\n"))
     }
 
+    /// `usemtl NAME`: the faces after it use that material.
     pub fn usemtl(&mut self, name: &str) -> Result<(), WriteError> {
         self.put(format_args!("usemtl {name}\n"))
     }
 
+    /// `o NAME`: starts a named object.
     pub fn object(&mut self, name: &str) -> Result<(), WriteError> {
         self.put(format_args!("o {name}\n"))
     }
@@ -220,6 +234,7 @@ impl ObjWriter {
         Ok(self.next_vertex())
     }
 
+    /// `vn x y z`; returns the normal's 1-based number.
     pub fn normal(&mut self, n: [f32; 3]) -> Result<u64, WriteError> {
         let [x, y, z] = n;
         self.put(format_args!("vn {x} {y} {z}\n"))?;
@@ -227,6 +242,7 @@ impl ObjWriter {
         Ok(self.stats.normals)
     }
 
+    /// `f a b c`: a triangle of the 1-based vertex numbers `v`.
     pub fn face(&mut self, v: [u64; 3]) -> Result<(), WriteError> {
         let [a, b, c] = v;
         self.put(format_args!("f {a} {b} {c}\n"))?;

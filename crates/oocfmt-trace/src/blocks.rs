@@ -82,23 +82,33 @@ const MAX_LOD: usize = (1 << 29) - 1;
 /// A node as the traversal matches on it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum NodeView {
+    /// A kd-tree split with up to two children in the same block.
     Inner {
+        /// The split plane's axis: 0 x, 1 y, 2 z.
         axis: u8,
+        /// The split plane's coordinate on `axis`, in stored coordinates.
         split: f32,
         /// Node indices in the same block, [`NONE`] for an empty child.
         left: u32,
+        /// Like `left`, for the child above the split.
         right: u32,
     },
     /// The LOD fields live in [`TreeletData::lods`] and [`TreeletData::look`].
     Lod {
+        /// The split plane's axis: 0 x, 1 y, 2 z.
         axis: u8,
+        /// The split plane's coordinate on `axis`, in stored coordinates.
         split: f32,
         /// Index in [`TreeletData::lods`].
         lod: u32,
     },
+    /// A leaf: `count` entries of triangle block `block`'s list, from entry `first`.
     Leaf {
+        /// The first entry in the triangle block's list ([`TriangleData::list`]).
         first: u16,
+        /// How many list entries the leaf holds.
         count: u16,
+        /// The id of the triangle block holding the leaf's triangles.
         block: u32,
     },
 }
@@ -121,6 +131,7 @@ pub enum LodKind {
 }
 
 impl LodKind {
+    /// The kind's name in messages and on the command line: `voxel` or `rlod`.
     pub fn name(self) -> &'static str {
         match self {
             LodKind::Voxel => "voxel",
@@ -133,16 +144,22 @@ impl LodKind {
 /// far past the cell it still counts.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Plane {
+    /// The plane's unit normal.
     pub normal: [f32; 3],
+    /// The plane's offset in stored coordinates: its points x have `normal · x = offset`.
     pub offset: f32,
+    /// The node's triangles' mean colour, linear RGB in 0..=1.
     pub colour: [f32; 3],
+    /// How far past the node's cell the plane still counts, in scene units (spec §6.4).
     pub expansion: f32,
 }
 
 /// What a LOD node shows.
 #[derive(Clone, Copy, Debug)]
 pub enum Shown {
+    /// The node's voxel: one sample, or one per cell face.
     Voxel(Voxel),
+    /// The node's R-LOD plane.
     Plane(Plane),
 }
 
@@ -155,7 +172,9 @@ pub struct Lod {
     pub radius: f32,
     /// Treelet indices in `child_block`, [`NONE`] for an empty child.
     pub left: u32,
+    /// Like `left`, for the child above the split.
     pub right: u32,
+    /// The id of the treelet block, one level finer, that holds the node's children.
     pub child_block: u32,
 }
 
@@ -179,6 +198,7 @@ pub struct TreeletData {
     nodes: Vec<DNode>,
     /// Leaves whose count the node cannot hold.
     spilled: Vec<Leaf>,
+    /// The LOD nodes' hot fields, by the index [`NodeView::Lod`] carries.
     pub lods: Vec<Lod>,
     /// Same index as `lods`.
     looks: Vec<LookAt>,
@@ -431,6 +451,7 @@ impl TreeletData {
         })
     }
 
+    /// How many nodes the block holds, every treelet's together.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
@@ -574,15 +595,19 @@ fn index_within(i: usize, max: usize, pos: usize) -> Result<u32> {
 pub struct TriangleData {
     /// Triangle index by list entry, each < the triangle count.
     pub list: Vec<u16>,
+    /// Each triangle's three corners, in stored coordinates (world = the scene origin + these).
     pub positions: Vec<[[f32; 3]; 3]>,
     /// Per corner, when the scene has vertex normals.
     pub normals: Option<Vec<[[f32; 3]; 3]>>,
     /// Per corner, linear RGB in 0..=1, when the scene has vertex colours.
     pub colours: Option<Vec<[[f32; 3]; 3]>>,
+    /// Each triangle's material index, when the scene has materials.
     pub materials: Option<Vec<u16>>,
 }
 
 impl TriangleData {
+    /// Decodes and checks `block`, whose attribute bits must equal `attrs` (the metadata
+    /// schema's).
     pub fn decode(block: &Block, attrs: u16) -> Result<TriangleData> {
         SCRATCH.with(|scratch| match scratch.try_borrow_mut() {
             Ok(mut s) => Self::decode_with(block, attrs, &mut s.vertices),
@@ -644,6 +669,7 @@ impl TriangleData {
         })
     }
 
+    /// Bytes this block holds in memory, for the cache budget.
     pub fn bytes(&self) -> usize {
         std::mem::size_of::<Self>()
             + self.list.capacity() * 2

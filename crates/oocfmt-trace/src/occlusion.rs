@@ -38,6 +38,8 @@ pub fn default_distance(lo: [f32; 3], hi: [f32; 3]) -> f32 {
     }
 }
 
+/// The AO rays of one frame: how many per hit, how far they reach, and the tracer they run
+/// on (with the solid-angle LOD constant when LOD is on).
 pub struct Occlusion<'a> {
     tracer: Tracer<'a>,
     rays: u32,
@@ -62,6 +64,7 @@ impl<'a> Occlusion<'a> {
         }
     }
 
+    /// AO rays traced per shaded hit, at least 1.
     pub fn rays(&self) -> u32 {
         self.rays
     }

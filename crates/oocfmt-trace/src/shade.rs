@@ -78,11 +78,14 @@ fn attributes(hit: &Hit, materials: &[Material]) -> ([f32; 3], [f32; 3]) {
 /// Secondary rays traced while shading.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Secondary {
+    /// Shadow rays: one per shaded hit with the point light in front of it.
     pub shadow: u64,
+    /// Ambient-occlusion rays, [`Occlusion::rays`] per shaded hit.
     pub ao: u64,
 }
 
 impl Secondary {
+    /// Adds `o`'s counts to these (a tile's counts into the frame's).
     pub fn add(&mut self, o: &Secondary) {
         self.shadow += o.shadow;
         self.ao += o.ao;
@@ -99,6 +102,9 @@ pub struct Lighting<'a> {
 }
 
 impl<'a> Lighting<'a> {
+    /// Shading with the scene's `materials`, the point light's `shadows` and ambient
+    /// `occlusion` when on; `bounds` is the scene's box (lo, hi), which sets how far a
+    /// secondary ray's origin is pushed off a voxel.
     pub fn new(
         materials: &'a [Material],
         shadows: Option<Shadows<'a>>,

@@ -42,24 +42,36 @@ pub use crate::memo::Memo;
 /// What a ray ended on.
 #[derive(Clone, Debug)]
 pub enum Surface {
+    /// A triangle of a decoded triangle block, at full detail.
     Triangle {
+        /// The triangle block, kept alive for shading after the cache lets it go.
         data: Arc<TriangleData>,
+        /// The triangle's index in `data`'s per-triangle arrays ([`TriangleData::positions`]).
         triangle: u32,
+        /// The hit's barycentric weights of the triangle's three corners, summing to 1.
         bary: [f32; 3],
     },
+    /// A LOD node's voxel: the sample of the cell face the ray entered through (the only one
+    /// for a single-sample voxel).
     Voxel(Sample),
+    /// A LOD node's proxy, standing in for a subtree whose block is not available: its sample
+    /// for the direction nearest the ray's.
     Proxy(Sample),
     /// An R-LOD plane: its unit normal and linear RGB colour.
     Plane {
+        /// The plane's unit normal.
         normal: [f32; 3],
+        /// The R-LOD's colour, linear RGB in 0..=1.
         colour: [f32; 3],
     },
 }
 
+/// Where a ray ended: how far along it, on what, and how large that surface's error is.
 #[derive(Clone, Debug)]
 pub struct Hit {
     /// Distance along the ray's direction (the image's depth for a unit direction).
     pub t: f32,
+    /// What the ray ended on.
     pub surface: Surface,
     /// The radius of the sphere enclosing the cell of the voxel or proxy the ray ended on
     /// (half the cell's diagonal), or the error radius of the R-LOD: secondary rays start
@@ -200,6 +212,8 @@ pub(crate) enum Best<'m> {
     },
 }
 
+/// Traces rays through one scene's kd-tree at one LOD constant, reading blocks from the cache
+/// through each tile's [`Memo`]; read-only once built, so a frame's threads share it.
 pub struct Tracer<'a> {
     pub(crate) cache: &'a dyn BlockCache,
     pub(crate) root: Option<(u32, u32)>,

@@ -21,12 +21,16 @@ use oocfmt::metadata::Material;
 /// (e.g. `mesh 3 primitive 1 triangle 17`).
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Location {
+    /// The input file, as its path displays (empty where no file applies).
     pub file: String,
+    /// The 1-based line, in a text format.
     pub line: Option<u64>,
+    /// The path to the element inside the file, in a structured format.
     pub item: Option<String>,
 }
 
 impl Location {
+    /// The whole of `file`.
     pub fn file(file: impl Into<String>) -> Location {
         Location {
             file: file.into(),
@@ -35,6 +39,7 @@ impl Location {
         }
     }
 
+    /// Line `line` (1-based) of `file`.
     pub fn line(file: impl Into<String>, line: u64) -> Location {
         Location {
             file: file.into(),
@@ -43,6 +48,7 @@ impl Location {
         }
     }
 
+    /// The element `item` (e.g. `mesh 3 primitive 1`) of `file`.
     pub fn item(file: impl Into<String>, item: impl Into<String>) -> Location {
         Location {
             file: file.into(),
@@ -70,9 +76,13 @@ impl fmt::Display for Location {
 /// to the same sink.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InputTriangle {
+    /// The three corners, as placed by [`TriangleSink::place`] (relative to the scene origin).
     pub positions: [[f32; 3]; 3],
+    /// The corners' normals, as the input gives them.
     pub normals: Option<[[f32; 3]; 3]>,
+    /// The corners' RGBA colours, value / 255.
     pub colours: Option<[[u8; 4]; 3]>,
+    /// The index [`TriangleSink::add_material`] returned for the triangle's material.
     pub material: Option<u32>,
     /// The importer's own numbers of the corners' vertices, when it has them: a hint that
     /// spares the in-memory sink a hash lookup for a vertex met before. It never changes
@@ -81,6 +91,7 @@ pub struct InputTriangle {
 }
 
 impl InputTriangle {
+    /// A triangle with positions only: no normals, colours, material or hint.
     pub fn new(positions: [[f32; 3]; 3]) -> InputTriangle {
         InputTriangle {
             positions,
@@ -107,6 +118,7 @@ pub enum DropReason {
 }
 
 impl DropReason {
+    /// The reason in words, for messages (`--strict` errors, the import report).
     pub fn describe(self) -> &'static str {
         match self {
             DropReason::NonFinite => "a coordinate is NaN or infinite",
@@ -152,7 +164,10 @@ pub(crate) fn edge_cross(p: &[[f32; 3]; 3]) -> [f64; 3] {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Skipped {
+    /// Line segments: one per pair of consecutive vertices of an OBJ `l` element, and OBJ
+    /// faces of two corners.
     Lines,
+    /// Points: one per vertex of an OBJ `p` element, and OBJ faces of one corner.
     Points,
     /// glTF primitives of a mode other than the triangle modes.
     NonTrianglePrimitives,
@@ -161,44 +176,81 @@ pub enum Skipped {
 /// What the import saw, for the final report.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct ImportReport {
+    /// The model files imported, in order, as their paths display (not the `.mtl` or buffer
+    /// files they name).
     pub files: Vec<String>,
     /// Triangles offered: kept plus dropped.
     pub triangles_in: u64,
+    /// Triangles kept: `triangles_in` − [`ImportReport::dropped_total`].
     pub triangles_out: u64,
+    /// Triangles dropped, by reason.
     pub dropped: BTreeMap<DropReason, u64>,
+    /// Non-triangle elements skipped, by kind.
     pub skipped: BTreeMap<Skipped, u64>,
+    /// Messages that did not stop the import, each prefixed with its [`Location`].
     pub warnings: Vec<String>,
     /// The scene origin and the rounding error of the stored positions.
     pub placement: PlacementReport,
 }
 
 impl ImportReport {
+    /// Triangles dropped, every reason together.
     pub fn dropped_total(&self) -> u64 {
         self.dropped.values().sum()
     }
 }
 
+/// Why an import failed, with where in the input.
 #[derive(Debug, thiserror::Error)]
 pub enum ImportError {
+    /// An input file could not be opened or read.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
         path: String,
+        /// The failure.
         source: std::io::Error,
     },
+    /// The input is not well-formed.
     #[error("{at}: {message}")]
-    Parse { at: Location, message: String },
+    Parse {
+        /// Where.
+        at: Location,
+        /// What is wrong.
+        message: String,
+    },
+    /// The input is valid but uses something the importer does not read.
     #[error("{at}: unsupported: {what}")]
-    Unsupported { at: Location, what: String },
+    Unsupported {
+        /// Where.
+        at: Location,
+        /// What is not supported.
+        what: String,
+    },
+    /// A count or size is past what the importer or the format allows.
     #[error("{at}: {what} exceeds the limit of {limit}")]
     Limit {
+        /// Where ([`Location::default`] where no place applies).
         at: Location,
+        /// What is counted, e.g. `triangles` or `distinct materials used by triangles`.
         what: String,
+        /// The most allowed.
         limit: u64,
     },
+    /// A triangle that would be dropped, refused because the import is strict.
     #[error("{at}: triangle refused under --strict: {}", reason.describe())]
-    Strict { at: Location, reason: DropReason },
+    Strict {
+        /// Where the triangle is.
+        at: Location,
+        /// Why it would be dropped.
+        reason: DropReason,
+    },
+    /// No triangle was kept.
     #[error("the input holds no usable triangle ({dropped} dropped)")]
-    Empty { dropped: u64 },
+    Empty {
+        /// How many triangles were dropped.
+        dropped: u64,
+    },
 }
 
 /// Receives an importer's output.

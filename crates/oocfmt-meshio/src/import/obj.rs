@@ -12,8 +12,8 @@
 //! are ignored, and so is the `w` of `v x y z w`, which only weighs rational curves.
 //!
 //! Positions are read as f64 and stored through [`TriangleSink::place`], which subtracts the
-//! scene origin before rounding to f32 (see [`coordinate`] for why that is still bit-exact
-//! without an origin).
+//! scene origin before rounding to f32 (see the parser's `coordinate` for why that is still
+//! bit-exact without an origin).
 
 mod lines;
 mod materials;

@@ -161,6 +161,7 @@ pub struct Placement {
 }
 
 impl Placement {
+    /// Places positions relative to `origin` (world coordinates, f64).
     pub fn new(origin: [f64; 3]) -> Placement {
         Placement {
             report: PlacementReport {
@@ -170,6 +171,7 @@ impl Placement {
         }
     }
 
+    /// The scene origin: world = origin + stored.
     pub fn origin(&self) -> [f64; 3] {
         self.report.origin
     }
@@ -197,6 +199,7 @@ impl Placement {
         stored
     }
 
+    /// The origin and the rounding errors over every position placed so far.
     pub fn report(&self) -> PlacementReport {
         self.report
     }

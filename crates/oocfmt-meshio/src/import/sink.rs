@@ -47,7 +47,10 @@ impl Vert {
 /// part's triangle blocks carry the same attributes.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PartSchema {
+    /// The scene has vertex normals: the part's mesh gets them even if its triangles have none.
     pub normals: bool,
+    /// The scene has vertex colours: the part's mesh gets them (white where the input gave
+    /// none).
     pub colours: bool,
     /// The scene's material table; triangles then give indices into it as their material, and
     /// the table is kept as it is instead of being compacted to what the part uses.
@@ -78,9 +81,13 @@ pub struct Intake<S> {
 
 /// What an [`Intake`] knows once the import is over.
 pub struct Intaken<S> {
+    /// The store, holding every admitted triangle.
     pub store: S,
+    /// The materials as the importers added them, indexed by [`InputTriangle::material`].
     pub table: Vec<Material>,
+    /// The materials triangles use (`None`: no material), in order of first use.
     pub used_order: Vec<Option<u32>>,
+    /// The import report, its placement figures filled in.
     pub report: ImportReport,
 }
 
@@ -106,6 +113,8 @@ impl<S> Intake<S> {
         }
     }
 
+    /// The report so far (its placement figures are filled in only by
+    /// [`Intake::finish_intake`]).
     pub fn report(&self) -> &ImportReport {
         &self.report
     }
