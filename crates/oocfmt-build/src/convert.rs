@@ -26,14 +26,22 @@ pub const BYTES_PER_TRIANGLE_IN_CORE: u64 = 1152;
 /// arrays and a useful chunk need about this much.
 pub const MIN_MEM_LIMIT: u64 = 16 << 20;
 
+/// Everything [`convert`] needs besides its inputs and output.
 #[derive(Clone, Debug)]
 pub struct ConvertOptions {
+    /// LOD, treelet, block and write settings; `sources`, `origin` and `params` are filled in by
+    /// [`convert`] from the inputs and `recentre`.
     pub layout: LayoutOptions,
+    /// kd-tree build settings (SAH costs, leaf size, depth limit).
     pub kd: KdBuildOptions,
     /// Refuse the first bad triangle instead of dropping and counting it.
     pub strict: bool,
+    /// Bytes of memory the build may use: a scene over this at [`BYTES_PER_TRIANGLE_IN_CORE`]
+    /// is built out of core, in chunks that fit.
     pub mem_limit: u64,
+    /// How `.obj` inputs are read.
     pub obj: import::obj::ObjOptions,
+    /// How `.gltf` and `.glb` inputs are read.
     pub gltf: import::gltf::GltfOptions,
     /// The scene origin positions are stored relative to.
     pub recentre: Recentre,
@@ -54,23 +62,33 @@ impl Default for ConvertOptions {
     }
 }
 
+/// Why [`convert`] failed, by phase.
 #[derive(Debug, thiserror::Error)]
 pub enum ConvertError {
+    /// An input could not be read or held a bad triangle under `strict`.
     #[error(transparent)]
     Import(#[from] ImportError),
+    /// The in-core kd-tree build failed.
     #[error(transparent)]
     Tree(#[from] KdError),
+    /// Computing LOD data, laying out blocks or writing them failed.
     #[error(transparent)]
     Layout(#[from] LayoutError),
+    /// The written file could not be re-opened to describe it.
     #[error(transparent)]
     Format(#[from] oocfmt::Error),
+    /// The out-of-core build, or a spill file, failed.
     #[error(transparent)]
     OutOfCore(#[from] OocError),
+    /// An input's extension is none of `.obj`, `.gltf`, `.glb`; holds the input's path.
     #[error("{0}: unknown input format (expected .obj, .gltf or .glb)")]
     UnknownFormat(String),
+    /// The temporary folder for spill files could not be made beside the output.
     #[error("cannot make a folder for spill files next to {path}: {source}")]
     SpillDir {
+        /// The output file the folder was to sit beside.
         path: String,
+        /// The I/O error creating it.
         source: std::io::Error,
     },
 }
@@ -78,11 +96,14 @@ pub enum ConvertError {
 /// Input formats, by file extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum InputFormat {
+    /// Wavefront OBJ (`.obj`).
     Obj,
+    /// glTF 2.0, text (`.gltf`) or binary (`.glb`).
     Gltf,
 }
 
 impl InputFormat {
+    /// The format `path`'s extension names (case-insensitive), or None for any other extension.
     pub fn of(path: &Path) -> Option<InputFormat> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         match ext.as_str() {

@@ -3,8 +3,11 @@
 
 /// Receives phase starts and advances. `total` is in the phase's own unit (bytes, triangles).
 pub trait Progress {
+    /// A phase named `name` starts; `total` is its amount of work, None when unknown.
     fn phase(&mut self, name: &str, total: Option<u64>);
+    /// `done` units of the current phase are complete so far (a running total, not a step).
     fn advance(&mut self, done: u64);
+    /// The current phase is over.
     fn finish_phase(&mut self);
 }
 

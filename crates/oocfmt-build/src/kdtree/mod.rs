@@ -21,24 +21,34 @@ pub use oocfmt::records::MAX_TREE_DEPTH;
 pub struct NodeId(pub u32);
 
 impl NodeId {
+    /// The id as a position in [`KdTree::nodes`].
     pub fn index(self) -> usize {
         self.0 as usize
     }
 }
 
+/// One node of a [`KdTree`]: a split plane with up to two children, or a leaf.
 #[derive(Clone, Debug, PartialEq)]
 pub enum KdNode {
     /// Splits its cell by the plane `axis = split`; `children[0]` is the low side. An empty side
     /// is `None`.
     Inner {
+        /// The axis the plane is normal to: 0 = x, 1 = y, 2 = z.
         axis: u8,
+        /// The plane's coordinate on `axis`, in mesh units; inside the node's cell.
         split: f32,
+        /// The children below and above the plane, each None when its side is empty; never both.
         children: [Option<NodeId>; 2],
     },
     /// Mesh triangle ids whose boxes overlap the leaf's cell.
-    Leaf { triangles: Vec<u32> },
+    Leaf {
+        /// Indices into the mesh's triangles, 1 ..= [`MAX_LEAF_TRIANGLES`] of them.
+        triangles: Vec<u32>,
+    },
 }
 
+/// How [`build`] and [`build_cell`] split nodes; [`KdBuildOptions::check`] gives each field's
+/// range.
 #[derive(Clone, Debug, PartialEq)]
 pub struct KdBuildOptions {
     /// A node of at most this many triangles becomes a leaf (1 ..= 4095); a larger one is
@@ -138,42 +148,95 @@ impl KdBuildOptions {
     }
 }
 
+/// Why a kd-tree could not be built or is not a proper tree. Node ids are positions in the
+/// node list being built or checked.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum KdError {
+    /// The mesh itself is invalid (an index out of range, a non-finite position).
     #[error(transparent)]
     Mesh(#[from] MeshError),
+    /// [`KdBuildOptions::max_leaf_triangles`] is outside its range; holds the value given.
     #[error("max_leaf_triangles {0} is outside 1 ..= {MAX_LEAF_TRIANGLES}")]
     MaxLeafTriangles(u32),
+    /// [`KdBuildOptions::max_depth`] is outside its range; holds the value given.
     #[error("max_depth {0} is outside 1 ..= {MAX_TREE_DEPTH}")]
     MaxDepth(u32),
+    /// Another [`KdBuildOptions`] field is outside its range.
     #[error("{option} {value}: expected {expected}")]
     BadOption {
+        /// The field's name.
         option: &'static str,
+        /// The value given, as text.
         value: String,
+        /// The range it must lie in.
         expected: &'static str,
     },
+    /// A node that must become a leaf holds more triangles than a leaf may.
     #[error("a leaf at depth {depth} needs {triangles} triangles, over the limit of {MAX_LEAF_TRIANGLES}: no axis-aligned plane separates them (they overlap in one place, or the depth limit was reached)")]
-    LeafTooLarge { triangles: usize, depth: u32 },
+    LeafTooLarge {
+        /// Triangles the leaf would hold.
+        triangles: usize,
+        /// Its node level (the root is 1).
+        depth: u32,
+    },
+    /// The tree would need more nodes than a u32 id can name.
     #[error("the tree needs more than {max} nodes", max = u32::MAX)]
     TooManyNodes,
+    /// A child id names no node.
     #[error("node {node} is out of range ({nodes} nodes)")]
-    NodeOutOfRange { node: u32, nodes: usize },
-    #[error("node {node} is reached twice or is unreachable from the root")]
-    NotATree { node: u32 },
-    #[error("node {node} is an inner node without children")]
-    NoChildren { node: u32 },
-    #[error("node {node} has an invalid axis {axis} or split {split} outside its cell")]
-    BadSplit { node: u32, axis: u8, split: f32 },
-    #[error("leaf {node} has {triangles} triangles: expected 1 ..= {MAX_LEAF_TRIANGLES}")]
-    LeafSize { node: u32, triangles: usize },
-    #[error("leaf {node} names triangle {triangle}, but the mesh has {triangles}")]
-    TriangleOutOfRange {
+    NodeOutOfRange {
+        /// The id named.
         node: u32,
-        triangle: u32,
+        /// Nodes in the list.
+        nodes: usize,
+    },
+    /// A node is reached from two parents, or from none.
+    #[error("node {node} is reached twice or is unreachable from the root")]
+    NotATree {
+        /// The node's id.
+        node: u32,
+    },
+    /// An inner node has neither child.
+    #[error("node {node} is an inner node without children")]
+    NoChildren {
+        /// The node's id.
+        node: u32,
+    },
+    /// An inner node's axis is over 2 or its plane lies outside its cell.
+    #[error("node {node} has an invalid axis {axis} or split {split} outside its cell")]
+    BadSplit {
+        /// The node's id.
+        node: u32,
+        /// Its axis.
+        axis: u8,
+        /// Its plane's coordinate.
+        split: f32,
+    },
+    /// A leaf holds no triangles or more than [`MAX_LEAF_TRIANGLES`].
+    #[error("leaf {node} has {triangles} triangles: expected 1 ..= {MAX_LEAF_TRIANGLES}")]
+    LeafSize {
+        /// The leaf's id.
+        node: u32,
+        /// Triangles it holds.
         triangles: usize,
     },
+    /// A leaf (or the list given to [`build_cell`], as node 0) names a triangle the mesh lacks.
+    #[error("leaf {node} names triangle {triangle}, but the mesh has {triangles}")]
+    TriangleOutOfRange {
+        /// The leaf's id.
+        node: u32,
+        /// The triangle id named.
+        triangle: u32,
+        /// Triangles in the mesh.
+        triangles: usize,
+    },
+    /// A path from the root has more than [`MAX_TREE_DEPTH`] node levels.
     #[error("the tree is {depth} node levels deep, over the limit of {MAX_TREE_DEPTH}")]
-    TooDeep { depth: u32 },
+    TooDeep {
+        /// The level reached.
+        depth: u32,
+    },
+    /// The root cell (or a cell given to [`build_cell`]) is empty or has a non-finite bound.
     #[error("the scene bounds {0:?} are empty or not finite")]
     BadBounds(Bounds),
 }
@@ -244,14 +307,17 @@ impl KdTree {
         }
     }
 
+    /// Every node, indexed by [`NodeId`]; the root comes first in a built tree.
     pub fn nodes(&self) -> &[KdNode] {
         &self.nodes
     }
 
+    /// The node `id`, or None when out of range.
     pub fn node(&self, id: NodeId) -> Option<&KdNode> {
         self.nodes.get(id.index())
     }
 
+    /// The root node; None for a tree without triangles.
     pub fn root(&self) -> Option<NodeId> {
         self.root
     }
@@ -271,6 +337,7 @@ impl KdTree {
         &self.params
     }
 
+    /// The low and high child of `id`; both None for a leaf or an id out of range.
     pub fn children(&self, id: NodeId) -> [Option<NodeId>; 2] {
         match self.node(id) {
             Some(KdNode::Inner { children, .. }) => *children,

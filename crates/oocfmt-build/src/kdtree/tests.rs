@@ -1,3 +1,7 @@
+//! The kd-tree builder on small hand-made and generated meshes: leaves cover every triangle,
+//! straddlers go to both sides, empty space is cut off, rays find what a brute-force test finds,
+//! bad options and parts are refused, and the tree does not depend on the thread count.
+
 use super::*;
 use crate::raycast::{first_hit_of, Prepared, Ray, Tracer};
 use oocfmt_scenes::demo_scene;

@@ -28,8 +28,10 @@ use triangles::{LeafRef, TriangleCounts, VertexTable};
 /// blocks waiting for their turn.
 pub(crate) const ENCODE_BATCH: usize = 256;
 
+/// How a tree is laid out into blocks, and what the metadata records about the build.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LayoutOptions {
+    /// Block size, codec, LOD kinds and the other writer settings.
     pub write: WriteOptions,
     /// Node levels per treelet (≥ 1); every `treelet_height`-th level holds the LOD nodes.
     pub treelet_height: u8,
@@ -40,7 +42,9 @@ pub struct LayoutOptions {
     /// open), so this bounds what a reader must hold: 64 triangles per 80-byte proxy is
     /// 1.25 bytes per triangle. Wald et al. kept about one proxy per 300 triangles.
     pub triangles_per_proxy: u32,
+    /// The program that wrote the file (metadata `provenance.generator`).
     pub generator: String,
+    /// The input files the scene came from (metadata `provenance.sources`).
     pub sources: Vec<String>,
     /// Extra `(key, value)` build parameters, appended after the ones the builder records.
     pub params: Vec<(String, String)>,
@@ -78,32 +82,57 @@ impl LayoutOptions {
     }
 }
 
+/// Why a tree could not be laid out or written.
 #[derive(Debug, thiserror::Error)]
 pub enum LayoutError {
+    /// The writer refused an option or failed to write.
     #[error(transparent)]
     Format(#[from] oocfmt::Error),
+    /// The mesh is invalid.
     #[error(transparent)]
     Mesh(#[from] MeshError),
+    /// The tree is not a proper tree over the mesh.
     #[error(transparent)]
     Tree(#[from] KdError),
+    /// [`LayoutOptions::treelet_height`] is 0; holds the value given.
     #[error("treelet height {0}: expected at least 1")]
     TreeletHeight(u8),
+    /// [`LayoutOptions::voxel_threshold`] is negative or not finite; holds the value given.
     #[error("voxel threshold {0}: expected a finite number ≥ 0")]
     VoxelThreshold(f32),
+    /// The treelets under one LOD node, which must share a block, do not fit in one.
     #[error("the child treelets of a LOD node need {bytes} bytes, more than a {block_size}-byte block: lower the treelet height or raise the block size")]
-    TreeletsTooLarge { bytes: usize, block_size: usize },
-    #[error("a treelet spans {bytes} node bytes, beyond the 32 KiB reach of child offsets: lower the treelet height")]
-    TreeletSpan { bytes: usize },
-    #[error("a leaf of {triangles} triangles needs {bytes} bytes, more than a {block_size}-byte triangle block: lower max_leaf_triangles or raise the block size")]
-    LeafTooLarge {
-        triangles: usize,
+    TreeletsTooLarge {
+        /// Bytes the treelets need together.
         bytes: usize,
+        /// The block size in bytes.
         block_size: usize,
     },
+    /// A treelet's nodes span more bytes than a child offset can reach.
+    #[error("a treelet spans {bytes} node bytes, beyond the 32 KiB reach of child offsets: lower the treelet height")]
+    TreeletSpan {
+        /// Node bytes spanned.
+        bytes: usize,
+    },
+    /// One leaf's triangles and vertices do not fit in one triangle block.
+    #[error("a leaf of {triangles} triangles needs {bytes} bytes, more than a {block_size}-byte triangle block: lower max_leaf_triangles or raise the block size")]
+    LeafTooLarge {
+        /// Triangles in the leaf.
+        triangles: usize,
+        /// Bytes of a triangle block holding this leaf alone.
+        bytes: usize,
+        /// The block size in bytes.
+        block_size: usize,
+    },
+    /// A LOD node's cell has a half-diagonal too large for an f32 radius.
     #[error("the scene is too large for f32 LOD radii")]
     SceneTooLarge,
+    /// More of something (named: blocks, treelets, triangles in a leaf, …) than the format's
+    /// count or index fields hold.
     #[error("too many {0} for the format's fields")]
     TooMany(&'static str),
+    /// A broken invariant between the layout's planning and encoding stages: a bug, not bad
+    /// input; names what was missing.
     #[error("internal layout error: {0}")]
     Internal(&'static str),
 }
@@ -111,16 +140,23 @@ pub enum LayoutError {
 /// One block before compression.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RawBlock {
+    /// What the block holds.
     pub kind: BlockKind,
+    /// LOD level of a treelet block; zero for other kinds.
     pub level: u16,
+    /// Treelets, triangles or proxies in the block.
     pub item_count: u32,
+    /// The block's bytes, uncompressed.
     pub raw: Vec<u8>,
 }
 
 /// Every block of a container, in file order, and its metadata.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Container {
+    /// Treelet blocks by level, then triangle blocks, then proxy blocks; a block's position is
+    /// its id.
     pub blocks: Vec<RawBlock>,
+    /// The metadata written after the blocks.
     pub metadata: Metadata,
 }
 

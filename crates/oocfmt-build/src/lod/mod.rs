@@ -68,6 +68,8 @@ pub const DEFAULT_VOXEL_THRESHOLD: f32 = 0.1;
 /// The LOD data of one node.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LodData {
+    /// The node's look from outside: one sample, or one per face when the faces differ by
+    /// more than the voxel threshold.
     pub voxel: Voxel,
     /// What a ray travelling along each of [`oocfmt::records::PROXY_DIRECTIONS`] sees;
     /// [`Sample::EMPTY`] where no ray hit anything.

@@ -163,6 +163,7 @@ pub struct PlaneMoments {
 }
 
 impl PlaneMoments {
+    /// Starts a fit of the triangles clipped to `cell`; sums are kept relative to its centre.
     pub fn new(cell: Bounds) -> PlaneMoments {
         PlaneMoments {
             frame: Frame::new(cell),
@@ -279,6 +280,7 @@ impl Deviation {
         }
     }
 
+    /// Measures one triangle's clipped part; one outside the cell changes nothing.
     pub fn add(&mut self, corners: [[f32; 3]; 3]) {
         if !self.frame.clip(corners, &mut self.scratch) {
             return;
@@ -292,6 +294,7 @@ impl Deviation {
         }
     }
 
+    /// The plane with the largest deviations found, as fitted and as stored.
     pub fn finish(self) -> PlaneFit {
         self.plane
     }

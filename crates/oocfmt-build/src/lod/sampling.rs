@@ -16,15 +16,22 @@ use oocfmt_meshio::mesh::{Bounds, Mesh};
 /// Small subtrees get few rays: the lowest LOD levels hold most LOD nodes, and a handful of
 /// triangles shows little detail anyway.
 pub const FACE_RAYS_MIN: usize = 4;
+/// The most rays per face in the first round; a face whose mean is still uncertain after them
+/// gets more, up to [`FACE_RAYS_MAX`].
 pub const FACE_RAYS_BASE: usize = 16;
+/// The most rays per face in all: uncertain faces, and every face of an out-of-core node,
+/// whose ray sequence must be fixed before any ray is answered.
 pub const FACE_RAYS_MAX: usize = 64;
+/// Subtree triangles per face ray in the first round (see [`FACE_RAYS_MIN`]).
 pub const TRIANGLES_PER_FACE_RAY: usize = 8;
 /// Rays per diagonal proxy direction: one per `TRIANGLES_PER_DIAGONAL_RAY` subtree triangles,
 /// at most `MAX`. Subtrees too small for `MIN` rays blend the samples of the two or three
 /// faces the direction looks through instead, weighted by their visible projected areas. The
 /// six axis directions always reuse the face rays.
 pub const DIAGONAL_RAYS_MIN: usize = 2;
+/// The most rays per diagonal proxy direction.
 pub const DIAGONAL_RAYS_MAX: usize = 16;
+/// Subtree triangles per diagonal ray (see [`DIAGONAL_RAYS_MIN`]).
 pub const TRIANGLES_PER_DIAGONAL_RAY: usize = 24;
 
 /// What a ray sees: the normal turned to face it, the mesh's own normal, and the colour.

@@ -1,3 +1,7 @@
+//! LOD sampling on small scenes: one sample or six as the faces differ, hidden geometry does not
+//! tint what is seen from outside, shared triangles count once, the recorded sampling matches
+//! the ray counts, and the data does not depend on the thread count.
+
 use oocfmt::records::{Sample, Voxel};
 
 use super::*;

@@ -1,8 +1,8 @@
 //! The out-of-core build (Áfra et al. 2012, §4.1; Correa et al. 2002, §3): the imported scene
 //! lives in a spill file, cells too large for memory are split at their spatial median in
-//! streaming passes ([`split`]), and each chunk that fits is built, sampled and laid out in
-//! memory on its own ([`chunk`]), its deeper blocks spilled. The median-split nodes and the
-//! chunks' top treelets form a small tree laid out last ([`top`]), and [`assemble`] writes
+//! streaming passes (`split`), and each chunk that fits is built, sampled and laid out in
+//! memory on its own (`chunk`), its deeper blocks spilled. The median-split nodes and the
+//! chunks' top treelets form a small tree laid out last (`top`), and `assemble` writes
 //! everything in the order the spec requires. Memory holds one chunk at a time, plus the top.
 
 mod assemble;
@@ -37,26 +37,44 @@ use chunk::{BlockSpill, ChunkBuilder, ChunkCounts, ChunkOut, SceneFacts};
 use oocfmt_meshio::import::{compact_materials, InputTriangle, PartSchema};
 use soup::Soup;
 
+/// Why the out-of-core build, or the spill files it and the importer use, failed.
 #[derive(Debug, thiserror::Error)]
 pub enum OocError {
+    /// Creating, reading, writing or removing a spill file failed.
     #[error("spill file {path}: {source}")]
     Spill {
+        /// The spill file (or the folder it was to be made in).
         path: String,
+        /// The I/O error.
         source: std::io::Error,
     },
+    /// A triangle spill file's length is not the record size times the records written to it.
     #[error("spill file {path}: {len} bytes, expected {count} records")]
-    SpillLength { path: String, len: u64, count: u64 },
+    SpillLength {
+        /// The spill file.
+        path: String,
+        /// Its length in bytes.
+        len: u64,
+        /// Records it should hold.
+        count: u64,
+    },
+    /// The import kept no triangle, or turning the spilled import back into an in-memory mesh
+    /// failed.
     #[error(transparent)]
     Import(#[from] oocfmt_meshio::import::ImportError),
+    /// A chunk's kd-tree build failed.
     #[error(transparent)]
     Tree(#[from] KdError),
+    /// Laying out a chunk or the top of the tree failed.
     #[error(transparent)]
     Layout(#[from] LayoutError),
+    /// Encoding or writing the container failed.
     #[error(transparent)]
     Format(#[from] oocfmt::Error),
 }
 
 impl OocError {
+    /// A [`OocError::Spill`] for `path`.
     pub fn spill(path: &Path, source: std::io::Error) -> OocError {
         OocError::Spill {
             path: path.display().to_string(),
@@ -68,13 +86,17 @@ impl OocError {
 /// What the out-of-core build did, for the report.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct OocStats {
+    /// Chunks built, each in memory on its own.
     pub chunks: u64,
+    /// Most triangles a chunk was meant to hold: the memory limit over the per-triangle cost.
     pub chunk_budget_triangles: u64,
+    /// Triangles (copies included) in the largest chunk.
     pub largest_chunk_triangles: u64,
     /// Chunks that could not be split down to the budget.
     pub oversized_chunks: u64,
     /// Triangle records in the chunks over triangles imported: the copies splits made.
     pub split_copies: u64,
+    /// LOD nodes among the median-split nodes above the chunks.
     pub top_lod_nodes: u64,
 }
 

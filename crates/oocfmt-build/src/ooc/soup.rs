@@ -24,6 +24,7 @@ use oocfmt_meshio::import::{
 };
 use oocfmt_meshio::mesh::{Bounds, Mesh};
 
+/// Bytes of one triangle record (the table above).
 pub const RECORD_LEN: usize = 92;
 const NO_MATERIAL: u32 = u32::MAX;
 const HAS_NORMALS: u32 = 1;
@@ -35,11 +36,14 @@ const NOT_PRIMARY: u32 = 4;
 /// it once as a primary (what `export` writes back).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SoupTriangle {
+    /// The triangle as the importer gave it (its `hint` is not stored).
     pub triangle: InputTriangle,
+    /// Whether this is the one copy of the input triangle that counts as the original.
     pub primary: bool,
 }
 
 impl SoupTriangle {
+    /// The triangle's record, laid out as in the table above.
     pub fn encode(&self) -> [u8; RECORD_LEN] {
         let mut r = [0u8; RECORD_LEN];
         let t = &self.triangle;
@@ -71,6 +75,7 @@ impl SoupTriangle {
         r
     }
 
+    /// The triangle a record holds; every bit pattern decodes to some triangle.
     pub fn decode(r: &[u8; RECORD_LEN]) -> SoupTriangle {
         let word = |k: usize| {
             let mut b = [0u8; 4];
@@ -112,6 +117,7 @@ pub struct SoupWriter {
 }
 
 impl SoupWriter {
+    /// Creates (or truncates) the spill file `path`.
     pub fn create(path: &Path) -> Result<SoupWriter, OocError> {
         let file = File::create(path).map_err(|e| OocError::spill(path, e))?;
         Ok(SoupWriter {
@@ -121,6 +127,7 @@ impl SoupWriter {
         })
     }
 
+    /// Appends one record (buffered: an I/O error may surface only at [`SoupWriter::finish`]).
     pub fn push(&mut self, t: &SoupTriangle) -> Result<(), OocError> {
         self.out
             .write_all(&t.encode())
@@ -185,16 +192,22 @@ impl Iterator for SoupReader {
 
 /// The imported scene as a spill file, with what the whole scene has.
 pub struct Soup {
+    /// The spill file holding every kept triangle, all primary.
     pub path: PathBuf,
+    /// Records in the spill file: the triangles kept.
     pub count: u64,
+    /// The box of every kept triangle's corners, positions relative to the scene origin.
     pub bounds: Bounds,
     /// Materials as the importers added them.
     pub materials: Vec<Material>,
     /// The materials triangles use (`None`: no material), in order of first use: the order the
     /// in-memory sink numbers them in, so both paths give the same material table.
     pub used_materials: Vec<Option<u32>>,
+    /// Some triangle has vertex normals.
     pub normals: bool,
+    /// Some triangle has vertex colours.
     pub colours: bool,
+    /// What the import read, dropped and warned about.
     pub report: ImportReport,
     /// The mesh built beside the import, when one was asked for and the scene fitted.
     tee: Option<MeshTee>,
@@ -258,8 +271,10 @@ impl Store for SoupStore {
 /// The sink of `oocfmt convert`: the shared bad-input policy in front of a spill file.
 pub type SoupSink = Intake<SoupStore>;
 
-/// `mesh_limit`: also build the in-memory mesh on a second thread, for a scene of at most
-/// that many triangles (see [`MeshTee`]).
+/// A sink that spills every admitted triangle to a new file at `path`, under the bad-input
+/// policy `strict` (refuse the first bad triangle, else drop and count it). With `mesh_limit`
+/// it also builds the in-memory mesh on a second thread, for a scene of at most that many
+/// triangles, so that an in-core build need not read the spill file back.
 pub fn soup_sink(path: &Path, strict: bool, mesh_limit: Option<u64>) -> Result<SoupSink, OocError> {
     let store = SoupStore {
         writer: SoupWriter::create(path)?,
@@ -271,7 +286,8 @@ pub fn soup_sink(path: &Path, strict: bool, mesh_limit: Option<u64>) -> Result<S
     Ok(Intake::with_store(strict, store))
 }
 
-/// Fails on an empty result, like the in-memory sink.
+/// Ends the import into `sink` and flushes its spill file. Fails on an empty result, like the
+/// in-memory sink.
 pub fn finish_soup(sink: SoupSink) -> Result<Soup, OocError> {
     let Intaken {
         store,

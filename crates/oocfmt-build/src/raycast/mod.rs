@@ -15,12 +15,15 @@ pub use packet::PACKET_MAX;
 /// zero ones) so that slab tests multiply instead of divide.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
+    /// Where the ray starts (`t = 0`), in mesh units.
     pub origin: [f64; 3],
+    /// Its direction; need not be unit length (`t` is in multiples of it).
     pub dir: [f64; 3],
     inv: [f64; 3],
 }
 
 impl Ray {
+    /// The ray from `origin` along `dir`.
     pub fn new(origin: [f64; 3], dir: [f64; 3]) -> Ray {
         Ray {
             origin,
@@ -34,9 +37,13 @@ impl Ray {
 /// of corners 1 and 2 (corner 0 has `1 − u − v`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
+    /// The ray parameter of the hit: the point is `origin + t · dir`.
     pub t: f64,
+    /// The mesh triangle hit.
     pub triangle: u32,
+    /// Barycentric weight of corner 1.
     pub u: f64,
+    /// Barycentric weight of corner 2.
     pub v: f64,
 }
 
@@ -91,6 +98,7 @@ fn moller_trumbore(ray: &Ray, v0: [f64; 3], e1: [f64; 3], e2: [f64; 3]) -> Optio
 /// triangles.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Prepared {
+    /// The mesh triangle it was made from.
     pub triangle: u32,
     v0: [f64; 3],
     e1: [f64; 3],
@@ -101,6 +109,7 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// Prepares mesh triangle `triangle` with corners `p`.
     pub fn new(triangle: u32, p: [[f64; 3]; 3]) -> Prepared {
         let lo: [f64; 3] = std::array::from_fn(|a| p[0][a].min(p[1][a]).min(p[2][a]));
         let hi: [f64; 3] = std::array::from_fn(|a| p[0][a].max(p[1][a]).max(p[2][a]));
@@ -230,6 +239,7 @@ pub struct Tracer<'a> {
 }
 
 impl<'a> Tracer<'a> {
+    /// A tracer over `tree`, whose leaves name triangles of `mesh`.
     pub fn new(mesh: &'a Mesh, tree: &'a KdTree) -> Tracer<'a> {
         Tracer {
             mesh,
