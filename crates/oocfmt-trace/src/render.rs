@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::cache::{BlockCache, CacheStats};
-use crate::camera::Camera;
+use crate::camera::{Camera, Frame};
 use crate::error::TraceError;
 use crate::intersect::Ray;
 use crate::light::{shoulder_light, Shadows};
@@ -32,8 +32,21 @@ const PACKET_H: usize = 2;
 /// The most primary rays per pixel and ambient-occlusion rays per primary ray.
 pub const MAX_SAMPLES: u32 = 1024;
 
-/// A finished tile: its index, colours, depths, ray endings, secondary rays and nodes visited.
-type TileOut = (u32, Vec<[u8; 3]>, Vec<f32>, Endings, Secondary, u64);
+/// A finished tile: what its pixels show and what tracing them cost.
+struct TileOut {
+    /// The tile's index, row-major over the frame's tiles.
+    tile: u32,
+    /// sRGB colours, row-major over the tile.
+    rgb: Vec<[u8; 3]>,
+    /// Centre-ray depths, in the order of `rgb`.
+    depth: Vec<f32>,
+    /// How the tile's centre rays ended.
+    endings: Endings,
+    /// Shadow and ambient-occlusion rays traced while shading the tile.
+    secondary: Secondary,
+    /// Kd-tree nodes the tile's rays visited.
+    visited: u64,
+}
 
 /// What one frame shows and at what level of detail; [`RenderOptions::DEFAULT`] is full
 /// detail under the headlight. [`render`] refuses values out of range.
@@ -132,6 +145,18 @@ pub struct Endings {
 }
 
 impl Endings {
+    /// Counts how a centre ray ended: on `hit`'s surface, or on nothing.
+    #[inline]
+    fn record(&mut self, hit: Option<&Hit>) {
+        match hit.map(|h| &h.surface) {
+            Some(Surface::Triangle { .. }) => self.triangle += 1,
+            Some(Surface::Voxel(_)) => self.voxel += 1,
+            Some(Surface::Plane { .. }) => self.rlod += 1,
+            Some(Surface::Proxy(_)) => self.proxy += 1,
+            None => self.miss += 1,
+        }
+    }
+
     fn add(&mut self, o: &Endings) {
         self.triangle += o.triangle;
         self.voxel += o.voxel;
@@ -228,161 +253,241 @@ pub fn render(
 ) -> Result<(Image, FrameStats), TraceError> {
     opts.check()?;
     let frame = camera.frame()?;
-    let lod_c = f64::from(opts.poe) * frame.pixel_angle();
-    let tracer = Tracer::new(scene, cache, lod_c as f32);
-    let m = scene.metadata();
-    let bounds = (m.scene.bounds_min, m.scene.bounds_max);
-    let shadows = opts.shadows.then(|| {
-        let light = opts
-            .light
-            .unwrap_or_else(|| shoulder_light(&frame, bounds.0, bounds.1));
-        Shadows::new(scene, cache, light.map(|c| c as f32), lod_c as f32)
-    });
-    let occlusion = (opts.ao > 0).then(|| {
-        let distance = opts
-            .ao_distance
-            .unwrap_or_else(|| default_distance(bounds.0, bounds.1));
-        Occlusion::new(scene, cache, opts.ao, distance, opts.poe > 0.0)
-    });
-    let lighting = Lighting::new(&m.materials, shadows, occlusion, bounds);
-    let (w, h) = (frame.width(), frame.height());
-    let spp = opts.spp;
-    let tiles_x = w.div_ceil(TILE);
-    let tiles = tiles_x * h.div_ceil(TILE);
-    let background = opts.background.map(encode_srgb);
+    let job = FrameJob::new(scene, cache, &frame, opts);
     let start = Instant::now();
     cache.begin_frame();
-    let done: Vec<TileOut> = (0..tiles)
+    let done: Vec<TileOut> = (0..job.tiles())
         .into_par_iter()
-        .map_init(
-            || Memo::pooled(scene),
-            |memo, tile| {
-                memo.clear();
-                let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);
-                let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
-                let n = ((x1 - x0) * (y1 - y0)) as usize;
-                let mut rgb = Vec::with_capacity(n);
-                let mut depth = Vec::with_capacity(n);
-                let mut endings = Endings::default();
-                let mut secondary = Secondary::default();
-                let mut rays = Vec::with_capacity(n);
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        rays.push(frame.ray(x, y));
-                    }
-                }
-                let mut hits = primary_hits(&tracer, &rays, (x1 - x0) as usize, memo);
-                for (k, (y, x)) in (y0..y1)
-                    .flat_map(|y| (x0..x1).map(move |x| (y, x)))
-                    .enumerate()
-                {
-                    // The primary ray's wants, in the order it would have made them traced
-                    // alone: before its shading's.
-                    memo.release_deferred(k as u32);
-                    let (Some(&ray), Some(hit)) = (rays.get(k), hits.get_mut(k)) else {
-                        continue;
-                    };
-                    let hit = hit.take();
-                    match &hit {
-                        Some(hit) => {
-                            match hit.surface {
-                                Surface::Triangle { .. } => endings.triangle += 1,
-                                Surface::Voxel(_) => endings.voxel += 1,
-                                Surface::Plane { .. } => endings.rlod += 1,
-                                Surface::Proxy(_) => endings.proxy += 1,
-                            }
-                            depth.push(hit.t);
-                        }
-                        None => {
-                            endings.miss += 1;
-                            depth.push(f32::INFINITY);
-                        }
-                    }
-                    if spp == 1 {
-                        rgb.push(match &hit {
-                            Some(hit) => {
-                                let seed = hash(x, y, 0, Stream::Occlusion);
-                                lighting
-                                    .colour(hit, &ray, seed, memo, &mut secondary)
-                                    .map(encode_srgb)
-                            }
-                            None => background,
-                        });
-                        continue;
-                    }
-                    let mut sum = [0f32; 3];
-                    for k in 0..spp {
-                        let [ox, oy] = pixel_offset(x, y, k, spp);
-                        let ray = frame.ray_at(f64::from(x) + ox, f64::from(y) + oy);
-                        let c = match tracer.trace(&ray, memo) {
-                            Some(hit) => {
-                                let seed = hash(x, y, k, Stream::Occlusion);
-                                lighting.colour(&hit, &ray, seed, memo, &mut secondary)
-                            }
-                            None => opts.background,
-                        };
-                        for (s, c) in sum.iter_mut().zip(c) {
-                            *s += c;
-                        }
-                    }
-                    rgb.push(sum.map(|s| encode_srgb(s / spp as f32)));
-                }
-                memo.flush(cache);
-                (tile, rgb, depth, endings, secondary, memo.take_visited())
-            },
-        )
+        .map_init(|| Memo::pooled(scene), |memo, tile| job.tile(tile, memo))
         .collect();
     let seconds = start.elapsed().as_secs_f64();
-    let mut image = Image {
-        width: w,
-        height: h,
-        rgb: vec![0; 3 * (w as usize) * (h as usize)],
-        depth: vec![f32::INFINITY; (w as usize) * (h as usize)],
-    };
-    let mut primary = Endings::default();
-    let mut secondary = Secondary::default();
-    let mut nodes_visited = 0;
-    for (tile, rgb, depth, endings, more, visited) in done {
-        primary.add(&endings);
-        secondary.add(&more);
-        nodes_visited += visited;
-        let (x0, y0) = ((tile % tiles_x) * TILE, (tile / tiles_x) * TILE);
-        let tw = ((x0 + TILE).min(w) - x0) as usize;
-        for (k, (c, d)) in rgb.iter().zip(&depth).enumerate() {
-            let (x, y) = (x0 as usize + k % tw, y0 as usize + k / tw);
-            let at = y * w as usize + x;
-            if let Some(p) = image.depth.get_mut(at) {
-                *p = *d;
-            }
-            if let Some(p) = image.rgb.get_mut(3 * at..3 * at + 3) {
-                p.copy_from_slice(c);
-            }
+    let (image, totals) = job.assemble(done);
+    Ok((image, job.stats(&totals, seconds)))
+}
+
+/// What every tile of one frame shares: the camera, the tracer and the lighting, built once
+/// before the first tile.
+struct FrameJob<'a> {
+    frame: &'a Frame,
+    opts: &'a RenderOptions,
+    cache: &'a dyn BlockCache,
+    tracer: Tracer<'a>,
+    lighting: Lighting<'a>,
+    /// The LOD constant ([`FrameStats::lod_c`]).
+    lod_c: f64,
+    /// Tiles per row of the image.
+    tiles_x: u32,
+    /// The sRGB colour of a centre ray that hits nothing, with one ray per pixel.
+    background: [u8; 3],
+}
+
+/// The figures of a frame's tiles, added up.
+#[derive(Default)]
+struct FrameTotals {
+    primary: Endings,
+    secondary: Secondary,
+    nodes_visited: u64,
+}
+
+impl<'a> FrameJob<'a> {
+    /// The frame setup: the LOD constant from the pixels of error, the shadow light and the
+    /// occlusion distance (the options' or the defaults for this camera and scene).
+    fn new(
+        scene: &'a Scene,
+        cache: &'a dyn BlockCache,
+        frame: &'a Frame,
+        opts: &'a RenderOptions,
+    ) -> FrameJob<'a> {
+        let lod_c = f64::from(opts.poe) * frame.pixel_angle();
+        let m = scene.metadata();
+        let bounds = (m.scene.bounds_min, m.scene.bounds_max);
+        let shadows = opts.shadows.then(|| {
+            let light = opts
+                .light
+                .unwrap_or_else(|| shoulder_light(frame, bounds.0, bounds.1));
+            Shadows::new(scene, cache, light.map(|c| c as f32), lod_c as f32)
+        });
+        let occlusion = (opts.ao > 0).then(|| {
+            let distance = opts
+                .ao_distance
+                .unwrap_or_else(|| default_distance(bounds.0, bounds.1));
+            Occlusion::new(scene, cache, opts.ao, distance, opts.poe > 0.0)
+        });
+        FrameJob {
+            frame,
+            opts,
+            cache,
+            tracer: Tracer::new(scene, cache, lod_c as f32),
+            lighting: Lighting::new(&m.materials, shadows, occlusion, bounds),
+            lod_c,
+            tiles_x: frame.width().div_ceil(TILE),
+            background: opts.background.map(encode_srgb),
         }
     }
-    let pixels = u64::from(w) * u64::from(h);
-    let primary_rays = if spp > 1 {
-        pixels * (1 + u64::from(spp))
-    } else {
-        pixels
-    };
-    let rays = primary_rays + secondary.shadow + secondary.ao;
-    let stats = FrameStats {
-        width: w,
-        height: h,
-        poe: opts.poe,
-        lod_c,
-        threads: rayon::current_num_threads(),
-        ms: seconds * 1e3,
-        rays,
-        rays_per_second: rays as f64 / seconds.max(1e-9),
-        spp,
-        primary_rays,
-        shadow_rays: secondary.shadow,
-        ao_rays: secondary.ao,
-        primary,
-        nodes_visited,
-        nodes_per_ray: nodes_visited as f64 / rays.max(1) as f64,
-        cache: cache.stats(),
-    };
-    Ok((image, stats))
+
+    fn tiles(&self) -> u32 {
+        self.tiles_x * self.frame.height().div_ceil(TILE)
+    }
+
+    /// The pixels of tile `tile`: x0..x1 by y0..y1, as `(x0, y0, x1, y1)`.
+    fn tile_rect(&self, tile: u32) -> (u32, u32, u32, u32) {
+        let (x0, y0) = ((tile % self.tiles_x) * TILE, (tile / self.tiles_x) * TILE);
+        let (x1, y1) = (
+            (x0 + TILE).min(self.frame.width()),
+            (y0 + TILE).min(self.frame.height()),
+        );
+        (x0, y0, x1, y1)
+    }
+
+    /// Traces and shades one tile: its centre rays first, in packets ([`primary_hits`]), then
+    /// each pixel in row-major order.
+    fn tile(&self, tile: u32, memo: &mut Memo) -> TileOut {
+        memo.clear();
+        let (x0, y0, x1, y1) = self.tile_rect(tile);
+        let n = ((x1 - x0) * (y1 - y0)) as usize;
+        let mut out = TileOut {
+            tile,
+            rgb: Vec::with_capacity(n),
+            depth: Vec::with_capacity(n),
+            endings: Endings::default(),
+            secondary: Secondary::default(),
+            visited: 0,
+        };
+        let mut rays = Vec::with_capacity(n);
+        for y in y0..y1 {
+            for x in x0..x1 {
+                rays.push(self.frame.ray(x, y));
+            }
+        }
+        let mut hits = primary_hits(&self.tracer, &rays, (x1 - x0) as usize, memo);
+        let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (y, x)));
+        for (k, (y, x)) in pixels.enumerate() {
+            // The primary ray's wants, in the order it would have made them traced alone:
+            // before its shading's.
+            memo.release_deferred(k as u32);
+            let (Some(&ray), Some(hit)) = (rays.get(k), hits.get_mut(k)) else {
+                continue;
+            };
+            let hit = hit.take();
+            out.endings.record(hit.as_ref());
+            out.depth.push(hit.as_ref().map_or(f32::INFINITY, |h| h.t));
+            let colour = self.colour(x, y, &ray, hit.as_ref(), memo, &mut out.secondary);
+            out.rgb.push(colour);
+        }
+        memo.flush(self.cache);
+        out.visited = memo.take_visited();
+        out
+    }
+
+    /// The shading: the sRGB colour of pixel (x, y), whose centre ray is `centre` and hit
+    /// `hit`. With one ray per pixel that is the centre ray's colour; with more, the
+    /// stratified mean ([`FrameJob::stratified`]).
+    #[inline]
+    fn colour(
+        &self,
+        x: u32,
+        y: u32,
+        centre: &Ray,
+        hit: Option<&Hit>,
+        memo: &mut Memo,
+        secondary: &mut Secondary,
+    ) -> [u8; 3] {
+        if self.opts.spp > 1 {
+            return self.stratified(x, y, memo, secondary);
+        }
+        match hit {
+            Some(hit) => {
+                let seed = hash(x, y, 0, Stream::Occlusion);
+                self.lighting
+                    .colour(hit, centre, seed, memo, secondary)
+                    .map(encode_srgb)
+            }
+            None => self.background,
+        }
+    }
+
+    /// The sRGB encoding of the mean, in linear RGB, of `spp` rays through stratified points
+    /// of pixel (x, y).
+    #[inline]
+    fn stratified(&self, x: u32, y: u32, memo: &mut Memo, secondary: &mut Secondary) -> [u8; 3] {
+        let spp = self.opts.spp;
+        let mut sum = [0f32; 3];
+        for k in 0..spp {
+            let [ox, oy] = pixel_offset(x, y, k, spp);
+            let ray = self.frame.ray_at(f64::from(x) + ox, f64::from(y) + oy);
+            let c = match self.tracer.trace(&ray, memo) {
+                Some(hit) => {
+                    let seed = hash(x, y, k, Stream::Occlusion);
+                    self.lighting.colour(&hit, &ray, seed, memo, secondary)
+                }
+                None => self.opts.background,
+            };
+            for (s, c) in sum.iter_mut().zip(c) {
+                *s += c;
+            }
+        }
+        sum.map(|s| encode_srgb(s / spp as f32))
+    }
+
+    /// Places the finished tiles' pixels in one image and adds up their figures.
+    fn assemble(&self, done: Vec<TileOut>) -> (Image, FrameTotals) {
+        let (w, h) = (self.frame.width(), self.frame.height());
+        let mut image = Image {
+            width: w,
+            height: h,
+            rgb: vec![0; 3 * (w as usize) * (h as usize)],
+            depth: vec![f32::INFINITY; (w as usize) * (h as usize)],
+        };
+        let mut totals = FrameTotals::default();
+        for t in done {
+            totals.primary.add(&t.endings);
+            totals.secondary.add(&t.secondary);
+            totals.nodes_visited += t.visited;
+            let (x0, y0, x1, _) = self.tile_rect(t.tile);
+            let tw = (x1 - x0) as usize;
+            for (k, (c, d)) in t.rgb.iter().zip(&t.depth).enumerate() {
+                let (x, y) = (x0 as usize + k % tw, y0 as usize + k / tw);
+                let at = y * w as usize + x;
+                if let Some(p) = image.depth.get_mut(at) {
+                    *p = *d;
+                }
+                if let Some(p) = image.rgb.get_mut(3 * at..3 * at + 3) {
+                    p.copy_from_slice(c);
+                }
+            }
+        }
+        (image, totals)
+    }
+
+    /// The frame's figures from its tiles' `totals` and its wall time in `seconds`.
+    fn stats(&self, totals: &FrameTotals, seconds: f64) -> FrameStats {
+        let (w, h) = (self.frame.width(), self.frame.height());
+        let spp = self.opts.spp;
+        let pixels = u64::from(w) * u64::from(h);
+        let primary_rays = if spp > 1 {
+            pixels * (1 + u64::from(spp))
+        } else {
+            pixels
+        };
+        let secondary = totals.secondary;
+        let rays = primary_rays + secondary.shadow + secondary.ao;
+        FrameStats {
+            width: w,
+            height: h,
+            poe: self.opts.poe,
+            lod_c: self.lod_c,
+            threads: rayon::current_num_threads(),
+            ms: seconds * 1e3,
+            rays,
+            rays_per_second: rays as f64 / seconds.max(1e-9),
+            spp,
+            primary_rays,
+            shadow_rays: secondary.shadow,
+            ao_rays: secondary.ao,
+            primary: totals.primary,
+            nodes_visited: totals.nodes_visited,
+            nodes_per_ray: totals.nodes_visited as f64 / rays.max(1) as f64,
+            cache: self.cache.stats(),
+        }
+    }
 }

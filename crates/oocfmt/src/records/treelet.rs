@@ -194,96 +194,148 @@ impl<'a> TreeletBlock<'a> {
         let mut stack = Vec::with_capacity(16);
         for t in 0..self.treelet_count() {
             let span = self.treelet_span(t)?;
-            let mut cursor = span.start;
-            stack.clear();
-            stack.push(span.start);
-            while let Some(pos) = stack.pop() {
-                // Spec §6.2: past the preorder position is a layout in another order
-                // (`NODE_ORDER`); before it, the node overlaps one already walked.
-                if pos != cursor {
-                    let code = if pos > cursor {
-                        Code::NodeOrder
-                    } else {
-                        Code::NodeOverlap
-                    };
-                    return Err(Error::malformed(
-                        code,
-                        format!("treelet {t}: node at {pos} but preorder puts the next node at {cursor}"),
-                    )
-                    .at(pos as u64));
-                }
-                let node = self.node(pos)?;
-                cursor += node.byte_len();
-                if cursor > span.end {
-                    return Err(Error::malformed(
-                        Code::NodeOverlap,
-                        format!(
-                            "treelet {t}: node at {pos} runs past the treelet's end {}",
-                            span.end
-                        ),
-                    )
-                    .at(pos as u64));
-                }
-                let mut entry = LodEntry::default();
-                match node {
-                    Node::Basic { left, right, .. } => {
-                        sum.basic_nodes += 1;
-                        if left != 0 && right != 0 && right <= left {
-                            return Err(Error::malformed(
-                                Code::NodeChild,
-                                format!("node at {pos}: right child before left"),
-                            )
-                            .at(pos as u64));
-                        }
-                        for units in [right, left] {
-                            if units != 0 {
-                                let child = Self::child_pos(pos, units);
-                                if child >= span.end {
-                                    return Err(Error::malformed(Code::NodeChild, format!("node at {pos}: child at {child} outside treelet {t} ({}..{})", span.start, span.end)).at(pos as u64));
-                                }
-                                stack.push(child);
-                            }
-                        }
-                    }
-                    Node::Lod { voxel_offset, .. } => {
-                        sum.lod_nodes += 1;
-                        let at = |e: Error| e.at(pos as u64);
-                        let voxel = if self.kinds.voxel {
-                            let v =
-                                Voxel::decode(self.voxels, voxel_offset as usize).map_err(at)?;
-                            match v {
-                                Voxel::Single(_) => sum.voxels_single += 1,
-                                Voxel::Six(_) => sum.voxels_six += 1,
-                            }
-                            Some(v)
-                        } else {
-                            None
-                        };
-                        if self.kinds.rlod {
-                            let skip = voxel.map_or(0, |v| v.byte_len());
-                            let r = Rlod::decode(self.voxels, voxel_offset as usize + skip);
-                            entry.rlod = Some(r.map_err(at)?);
-                            sum.rlods += 1;
-                        }
-                        entry.voxel = voxel;
-                    }
-                    Node::Leaf { .. } => sum.leaves += 1,
-                }
-                visit(t, pos, &node, &entry)?;
-            }
-            if cursor != span.end {
-                return Err(Error::malformed(
-                    Code::NodeOverlap,
-                    format!(
-                        "treelet {t}: nodes end at {cursor}, the treelet at {}",
-                        span.end
-                    ),
-                )
-                .at(cursor as u64));
-            }
+            self.walk_treelet(t, span, &mut stack, &mut sum, &mut visit)?;
         }
         Ok(sum)
     }
+
+    /// Treelet `t` of [`TreeletBlock::walk_lods`], whose nodes span `span`: a preorder walk on
+    /// `stack` in which each node must start where the previous one ended.
+    #[inline]
+    fn walk_treelet(
+        &self,
+        t: usize,
+        span: Range<usize>,
+        stack: &mut Vec<usize>,
+        sum: &mut TreeletSummary,
+        visit: &mut impl FnMut(usize, usize, &Node, &LodEntry) -> Result<()>,
+    ) -> Result<()> {
+        let mut cursor = span.start;
+        stack.clear();
+        stack.push(span.start);
+        while let Some(pos) = stack.pop() {
+            preorder(t, pos, cursor)?;
+            let node = self.node(pos)?;
+            cursor += node.byte_len();
+            if cursor > span.end {
+                return Err(Error::malformed(
+                    Code::NodeOverlap,
+                    format!(
+                        "treelet {t}: node at {pos} runs past the treelet's end {}",
+                        span.end
+                    ),
+                )
+                .at(pos as u64));
+            }
+            let entry = match node {
+                Node::Basic { left, right, .. } => {
+                    sum.basic_nodes += 1;
+                    push_children(t, pos, [left, right], &span, stack)?;
+                    LodEntry::default()
+                }
+                Node::Lod { voxel_offset, .. } => {
+                    sum.lod_nodes += 1;
+                    self.lod_entry(voxel_offset, sum)
+                        .map_err(|e| e.at(pos as u64))?
+                }
+                Node::Leaf { .. } => {
+                    sum.leaves += 1;
+                    LodEntry::default()
+                }
+            };
+            visit(t, pos, &node, &entry)?;
+        }
+        if cursor != span.end {
+            return Err(Error::malformed(
+                Code::NodeOverlap,
+                format!(
+                    "treelet {t}: nodes end at {cursor}, the treelet at {}",
+                    span.end
+                ),
+            )
+            .at(cursor as u64));
+        }
+        Ok(())
+    }
+
+    /// Decodes the LOD entry at `voxel_offset`, the file's LOD kinds in order, counting what it
+    /// holds in `sum`.
+    #[inline]
+    fn lod_entry(&self, voxel_offset: u32, sum: &mut TreeletSummary) -> Result<LodEntry> {
+        let mut entry = LodEntry::default();
+        if self.kinds.voxel {
+            let v = Voxel::decode(self.voxels, voxel_offset as usize)?;
+            match v {
+                Voxel::Single(_) => sum.voxels_single += 1,
+                Voxel::Six(_) => sum.voxels_six += 1,
+            }
+            entry.voxel = Some(v);
+        }
+        if self.kinds.rlod {
+            let skip = entry.voxel.map_or(0, |v| v.byte_len());
+            entry.rlod = Some(Rlod::decode(self.voxels, voxel_offset as usize + skip)?);
+            sum.rlods += 1;
+        }
+        Ok(entry)
+    }
+}
+
+/// Checks that the node at `pos` of treelet `t` is where preorder puts the next one, `cursor`
+/// (spec §6.2): past it is a layout in another order (`NODE_ORDER`); before it, the node
+/// overlaps one already walked.
+#[inline]
+fn preorder(t: usize, pos: usize, cursor: usize) -> Result<()> {
+    if pos == cursor {
+        return Ok(());
+    }
+    let code = if pos > cursor {
+        Code::NodeOrder
+    } else {
+        Code::NodeOverlap
+    };
+    Err(Error::malformed(
+        code,
+        format!("treelet {t}: node at {pos} but preorder puts the next node at {cursor}"),
+    )
+    .at(pos as u64))
+}
+
+/// Pushes a basic node's children, given as `[left, right]` offsets (0: none), right first so
+/// that the left one is walked next; checks that the right one comes after the left and that
+/// both are inside the treelet's `span`.
+#[inline]
+fn push_children(
+    t: usize,
+    pos: usize,
+    [left, right]: [u16; 2],
+    span: &Range<usize>,
+    stack: &mut Vec<usize>,
+) -> Result<()> {
+    if left != 0 && right != 0 && right <= left {
+        return Err(Error::malformed(
+            Code::NodeChild,
+            format!("node at {pos}: right child before left"),
+        )
+        .at(pos as u64));
+    }
+    for units in [right, left] {
+        if units == 0 {
+            continue;
+        }
+        let child = TreeletBlock::child_pos(pos, units);
+        if child >= span.end {
+            return Err(Error::malformed(
+                Code::NodeChild,
+                format!(
+                    "node at {pos}: child at {child} outside treelet {t} ({}..{})",
+                    span.start, span.end
+                ),
+            )
+            .at(pos as u64));
+        }
+        stack.push(child);
+    }
+    Ok(())
 }
 
 /// Encodes a treelet block record by record. The caller lays the tree out; this only writes

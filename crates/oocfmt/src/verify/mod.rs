@@ -118,23 +118,58 @@ impl Verifier<'_> {
         Ok(())
     }
 
+    /// The quick depth: the header, the trailer, the section table, the directory and the
+    /// metadata, with the root checksum over them. None when nothing past them can be trusted.
     fn quick(&mut self) -> Result<Option<Index>> {
-        let len = self.src.len();
         let min = (HEADER_LEN + TRAILER_LEN) as u64;
-        if len < min {
+        if self.src.len() < min {
             let e = short_file_error(self.src)?;
             self.note(e)?;
             return Ok(None);
         }
         let header_bytes = read_vec(self.src, 0, HEADER_LEN as u64)?;
-        let mut header = match Header::decode_unchecked(&header_bytes) {
+        let Some((mut header, header_ok)) = self.header(&header_bytes)? else {
+            return Ok(None);
+        };
+        let trailer = match read_trailer(self.src) {
+            Ok(t) => Some(t),
+            Err(e) => {
+                self.note(e)?;
+                None
+            }
+        };
+        let Some(sections) = self.choose_sections(&header, header_ok, trailer.as_ref())? else {
+            return Ok(None);
+        };
+        header.sections = sections;
+        self.report.identity = trailer.map(|t| format!("{:08x}", t.root_checksum));
+        let dir_len = u64::from(sections.block_count) * ENTRY_LEN as u64;
+        let dir_bytes = read_vec(self.src, sections.directory_offset, dir_len)?;
+        let entries = self.directory(&header, &dir_bytes, trailer.as_ref())?;
+        self.resident(&entries)?;
+        let metadata = match &trailer {
+            Some(t) => self.metadata(&header, t, &header_bytes, &dir_bytes)?,
+            None => None,
+        };
+        Ok(Some(Index {
+            header,
+            entries,
+            metadata,
+        }))
+    }
+
+    /// Decodes the header and reports what it says wrong or new. Returns it with whether it
+    /// passed the full decode (its section table is then a candidate); None when it cannot be
+    /// decoded at all or needs a feature this reader lacks.
+    fn header(&mut self, bytes: &[u8]) -> Result<Option<(Header, bool)>> {
+        let mut header = match Header::decode_unchecked(bytes) {
             Ok(h) => h,
             Err(e) => {
                 self.note(e)?;
                 return Ok(None);
             }
         };
-        let header_ok = match Header::decode(&header_bytes) {
+        let header_ok = match Header::decode(bytes) {
             Ok(_) => true,
             Err(e) => {
                 let fatal = e.code() == Code::HeaderFeatureUnsupported;
@@ -164,62 +199,53 @@ impl Verifier<'_> {
             );
         }
         header.block_size_log2 = header.block_size_log2.min(MAX_BLOCK_SIZE_LOG2);
-        let trailer = match read_trailer(self.src) {
-            Ok(t) => Some(t),
-            Err(e) => {
-                self.note(e)?;
-                None
-            }
-        };
-        let Some(sections) = self.choose_sections(&header, header_ok, trailer.as_ref())? else {
-            return Ok(None);
-        };
-        header.sections = sections;
-        self.report.identity = trailer.map(|t| format!("{:08x}", t.root_checksum));
-        let dir_len = u64::from(sections.block_count) * ENTRY_LEN as u64;
-        let dir_bytes = read_vec(self.src, sections.directory_offset, dir_len)?;
-        let entries = self.directory(&header, &dir_bytes, trailer.as_ref())?;
+        Ok(Some((header, header_ok)))
+    }
+
+    /// Reports proxies that together pass the resident limit (a reader keeps them all loaded).
+    fn resident(&mut self, entries: &[Option<BlockEntry>]) -> Result<()> {
         let resident: u64 = entries
             .iter()
             .flatten()
             .filter(|e| e.kind == BlockKind::Proxy)
             .map(|e| u64::from(e.raw_length))
             .sum();
-        if resident > self.opts.limits.max_resident_bytes {
-            self.note(Error::limit(
-                "resident proxies",
-                resident,
-                self.opts.limits.max_resident_bytes,
-            ))?;
+        let limit = self.opts.limits.max_resident_bytes;
+        if resident > limit {
+            self.note(Error::limit("resident proxies", resident, limit))?;
         }
-        let (metadata, meta_bytes) = match &trailer {
-            Some(t) => match read_metadata(self.src, &header, t, &self.opts.limits) {
-                Ok((m, b)) => (Some(m), Some(b)),
+        Ok(())
+    }
+
+    /// Reads the metadata the trailer points to and checks the root checksum over the header's,
+    /// the directory's and the metadata's bytes; None when the metadata cannot be read.
+    fn metadata(
+        &mut self,
+        header: &Header,
+        trailer: &Trailer,
+        header_bytes: &[u8],
+        dir_bytes: &[u8],
+    ) -> Result<Option<Metadata>> {
+        let (metadata, meta_bytes) =
+            match read_metadata(self.src, header, trailer, &self.opts.limits) {
+                Ok(m) => m,
                 Err(e) => {
                     self.note(e)?;
-                    (None, None)
+                    return Ok(None);
                 }
-            },
-            None => (None, None),
-        };
-        if let (Some(t), Some(mb)) = (&trailer, &meta_bytes) {
-            let computed = root_checksum(&header_bytes, &dir_bytes, mb);
-            if computed != t.root_checksum {
-                self.note_code(
-                    Code::RootChecksum,
-                    format!(
-                        "root checksum: stored {:#010x}, computed {computed:#010x}",
-                        t.root_checksum
-                    ),
-                    None,
-                );
-            }
+            };
+        let computed = root_checksum(header_bytes, dir_bytes, &meta_bytes);
+        if computed != trailer.root_checksum {
+            self.note_code(
+                Code::RootChecksum,
+                format!(
+                    "root checksum: stored {:#010x}, computed {computed:#010x}",
+                    trailer.root_checksum
+                ),
+                None,
+            );
         }
-        Ok(Some(Index {
-            header,
-            entries,
-            metadata,
-        }))
+        Ok(Some(metadata))
     }
 
     /// Picks the section table to trust: the header's and trailer's must agree and tile the file.

@@ -7,11 +7,11 @@ use super::{Index, Verifier};
 use crate::directory::{BlockEntry, BlockKind};
 use crate::error::{Code, Result};
 use crate::header::{COMPAT_LOD_VOXELS, COMPAT_PROXIES};
-use crate::metadata::{Counts, TreeletRef};
+use crate::metadata::{Counts, Metadata, TreeletRef};
 use crate::reader::{read_block_data, ReadOptions};
 use crate::records::LodKinds;
 use crate::records::{
-    lod_child_treelets, Node, TreeletBlock, MAX_TREE_DEPTH as MAX_DEPTH, NO_PROXY,
+    lod_child_treelets, Node, Rlod, TreeletBlock, Voxel, MAX_TREE_DEPTH as MAX_DEPTH, NO_PROXY,
 };
 use crate::summary::BlockFacts;
 
@@ -21,6 +21,16 @@ struct Inherit {
     cell: [[f64; 3]; 2],
     depth: u32,
     max_radius: f32,
+}
+
+/// Where a node is: in the file (its block and the block's level, its byte position in the
+/// node area) and in space (its cell). Every report names its block and position.
+#[derive(Clone, Copy)]
+struct At {
+    id: u32,
+    level: u16,
+    pos: usize,
+    cell: [[f64; 3]; 2],
 }
 
 /// Where a treelet stands in the walk.
@@ -97,37 +107,7 @@ pub(super) fn check(
         stack: Vec::with_capacity(64),
         counts: Counts::default(),
     };
-    match meta.root {
-        None if index.entries.is_empty() => {
-            v.note_code(Code::TreeEmpty, "the file holds no geometry".into(), None)
-        }
-        None => v.note_code(Code::TreeRoot, "blocks but no root".into(), None),
-        Some(root) => {
-            let ok = matches!(w.entry(root.block), Some(e) if e.kind == BlockKind::Treelet && e.level == 0 && root.treelet < e.item_count);
-            if !ok {
-                v.note_code(
-                    Code::TreeRoot,
-                    format!("root {root:?} is not a treelet of a level-0 treelet block"),
-                    None,
-                );
-            } else {
-                let cell = [
-                    meta.scene.bounds_min.map(f64::from),
-                    meta.scene.bounds_max.map(f64::from),
-                ];
-                let count = w.treelet_count(root.block);
-                w.slots.await_treelet(
-                    root,
-                    count,
-                    Inherit {
-                        cell,
-                        depth: 0,
-                        max_radius: f32::INFINITY,
-                    },
-                );
-            }
-        }
-    }
+    w.seed_root(v, index, meta);
     let ropts = ReadOptions {
         limits: v.opts.limits,
         checksums: v.opts.checksums,
@@ -157,6 +137,42 @@ pub(super) fn check(
 }
 
 impl Walk<'_> {
+    /// Marks the root treelet as pending, with the scene's box for its cell; reports a file
+    /// with no root, or a root that is not a treelet of a level-0 treelet block.
+    fn seed_root(&mut self, v: &mut Verifier<'_>, index: &Index, meta: &Metadata) {
+        let Some(root) = meta.root else {
+            if index.entries.is_empty() {
+                v.note_code(Code::TreeEmpty, "the file holds no geometry".into(), None);
+            } else {
+                v.note_code(Code::TreeRoot, "blocks but no root".into(), None);
+            }
+            return;
+        };
+        let ok = matches!(self.entry(root.block), Some(e) if e.kind == BlockKind::Treelet && e.level == 0 && root.treelet < e.item_count);
+        if !ok {
+            v.note_code(
+                Code::TreeRoot,
+                format!("root {root:?} is not a treelet of a level-0 treelet block"),
+                None,
+            );
+            return;
+        }
+        let cell = [
+            meta.scene.bounds_min.map(f64::from),
+            meta.scene.bounds_max.map(f64::from),
+        ];
+        let count = self.treelet_count(root.block);
+        self.slots.await_treelet(
+            root,
+            count,
+            Inherit {
+                cell,
+                depth: 0,
+                max_radius: f32::INFINITY,
+            },
+        );
+    }
+
     fn entry(&self, id: u32) -> Option<BlockEntry> {
         self.entries.get(id as usize).copied().flatten()
     }
@@ -188,6 +204,7 @@ impl Walk<'_> {
         }
     }
 
+    /// Walks one treelet from its root node at `root`, checking each node it reaches.
     fn treelet(
         &mut self,
         v: &mut Verifier<'_>,
@@ -211,6 +228,12 @@ impl Walk<'_> {
             }
             self.counts.depth = self.counts.depth.max(depth);
             let Ok(node) = block.node(pos) else { continue };
+            let at = At {
+                id,
+                level: e.level,
+                pos,
+                cell,
+            };
             match node {
                 Node::Basic {
                     axis,
@@ -219,7 +242,7 @@ impl Walk<'_> {
                     right,
                 } => {
                     self.counts.basic_nodes += 1;
-                    let (lc, rc) = split_cell(v, id, pos, cell, axis, split);
+                    let (lc, rc) = split_cell(v, at, axis, split);
                     if right != 0 {
                         stack.push((TreeletBlock::child_pos(pos, right), rc, depth + 1));
                     }
@@ -239,95 +262,83 @@ impl Walk<'_> {
                     proxy,
                 } => {
                     self.counts.lod_nodes += 1;
-                    if let Ok(vox) = block.voxel(voxel_offset) {
-                        match vox {
-                            crate::records::Voxel::Single(_) => self.counts.voxels_single += 1,
-                            crate::records::Voxel::Six(_) => self.counts.voxels_six += 1,
-                        }
-                    }
-                    self.lod_radius(v, id, pos, cell, radius, inh.max_radius);
+                    self.count_voxel(block, voxel_offset);
+                    lod_radius(v, at, radius, inh.max_radius);
                     if let Ok(r) = block.rlod(voxel_offset) {
-                        rlod_plane(v, id, pos, cell, radius, &r);
+                        rlod_plane(v, at, radius, &r);
                     }
-                    let (lc, rc) = split_cell(v, id, pos, cell, axis, split);
-                    let children = [(left_present, lc), (right_present, rc)];
-                    self.lod_children(
-                        v,
-                        id,
-                        e,
-                        pos,
-                        child_block,
-                        child_treelet,
-                        children,
+                    let (lc, rc) = split_cell(v, at, axis, split);
+                    let inherit = |cell| Inherit {
+                        cell,
                         depth,
-                        radius,
-                    );
-                    self.proxy(v, id, pos, proxy);
+                        max_radius: radius,
+                    };
+                    let children = [(left_present, inherit(lc)), (right_present, inherit(rc))];
+                    self.lod_children(v, at, child_block, child_treelet, children);
+                    self.proxy(v, at, proxy);
                 }
                 Node::Leaf {
                     count,
                     first,
                     block: tb,
-                } => {
-                    self.counts.leaves += 1;
-                    let list = match (self.entry(tb), self.facts.get(tb as usize)) {
-                        (Some(te), Some(Some(BlockFacts::Triangle { list, .. })))
-                            if te.kind == BlockKind::Triangle =>
-                        {
-                            Some(*list)
-                        }
-                        _ => None,
-                    };
-                    match list {
-                        Some(l) if u32::from(first) + u32::from(count) <= l => {}
-                        Some(l) => v.note_code(Code::TreeReference, format!("leaf at {pos}: entries {first}+{count} pass the {l} of triangle block {tb}"), Some(id)),
-                        None => v.note_code(Code::TreeReference, format!("leaf at {pos}: block {tb} is not a valid triangle block"), Some(id)),
-                    }
-                }
+                } => self.leaf(v, at, tb, first, count),
             }
         }
         self.stack = stack;
     }
 
-    fn lod_radius(
-        &self,
-        v: &mut Verifier<'_>,
-        id: u32,
-        pos: usize,
-        cell: [[f64; 3]; 2],
-        radius: f32,
-        ancestor: f32,
-    ) {
-        if radius > ancestor {
-            v.note_code(
-                Code::TreeLodRadius,
-                format!("LOD node at {pos}: radius {radius} exceeds its ancestor's {ancestor}"),
-                Some(id),
-            );
-        }
-        let half_diag = (0..3)
-            .map(|a| (cell[1][a] - cell[0][a]).powi(2))
-            .sum::<f64>()
-            .sqrt()
-            / 2.0;
-        if f64::from(radius) < half_diag * (1.0 - 1e-6) {
-            v.note_code(Code::TreeLodRadius, format!("LOD node at {pos}: radius {radius} is below its cell's half diagonal {half_diag}"), Some(id));
+    /// Counts the voxel of the LOD entry at `voxel_offset`, by its kind (none in a file
+    /// without voxels).
+    fn count_voxel(&mut self, block: &TreeletBlock<'_>, voxel_offset: u32) {
+        match block.voxel(voxel_offset) {
+            Ok(Voxel::Single(_)) => self.counts.voxels_single += 1,
+            Ok(Voxel::Six(_)) => self.counts.voxels_six += 1,
+            Err(_) => {}
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// Counts a leaf; reports one whose `count` entries from `first` are not all in triangle
+    /// block `tb`.
+    fn leaf(&mut self, v: &mut Verifier<'_>, at: At, tb: u32, first: u16, count: u16) {
+        self.counts.leaves += 1;
+        let list = match (self.entry(tb), self.facts.get(tb as usize)) {
+            (Some(te), Some(Some(BlockFacts::Triangle { list, .. })))
+                if te.kind == BlockKind::Triangle =>
+            {
+                Some(*list)
+            }
+            _ => None,
+        };
+        let pos = at.pos;
+        match list {
+            Some(l) if u32::from(first) + u32::from(count) <= l => {}
+            Some(l) => v.note_code(
+                Code::TreeReference,
+                format!(
+                    "leaf at {pos}: entries {first}+{count} pass the {l} of triangle block {tb}"
+                ),
+                Some(at.id),
+            ),
+            None => v.note_code(
+                Code::TreeReference,
+                format!("leaf at {pos}: block {tb} is not a valid triangle block"),
+                Some(at.id),
+            ),
+        }
+    }
+
+    /// Marks the treelets a LOD node points to as pending, each present child of `children`
+    /// with what it inherits: treelets from `first` of block `child_block`, which must be a
+    /// treelet block one level below the node's. Reports a treelet reached twice.
     fn lod_children(
         &mut self,
         v: &mut Verifier<'_>,
-        id: u32,
-        e: &BlockEntry,
-        pos: usize,
+        at: At,
         child_block: u32,
         first: u32,
-        children: [(bool, [[f64; 3]; 2]); 2],
-        depth: u32,
-        radius: f32,
+        children: [(bool, Inherit); 2],
     ) {
+        let pos = at.pos;
         let Some(ce) = self
             .entry(child_block)
             .filter(|c| c.kind == BlockKind::Treelet)
@@ -335,24 +346,24 @@ impl Walk<'_> {
             v.note_code(
                 Code::TreeReference,
                 format!("LOD node at {pos}: child block {child_block} is not a treelet block"),
-                Some(id),
+                Some(at.id),
             );
             return;
         };
-        if u32::from(ce.level) != u32::from(e.level) + 1 {
+        if u32::from(ce.level) != u32::from(at.level) + 1 {
             v.note_code(
                 Code::TreeLevel,
                 format!(
                     "LOD node at {pos}: child block {child_block} has level {}, not {}",
                     ce.level,
-                    e.level + 1
+                    at.level + 1
                 ),
-                Some(id),
+                Some(at.id),
             );
             return;
         }
         let present = children.map(|(p, _)| p);
-        for (index, (_, cell)) in lod_child_treelets(first, present).into_iter().zip(children) {
+        for (index, (_, inherit)) in lod_child_treelets(first, present).into_iter().zip(children) {
             let Some(index) = index else { continue };
             if index >= ce.item_count {
                 v.note_code(
@@ -361,7 +372,7 @@ impl Walk<'_> {
                         "LOD node at {pos}: treelet {index} of block {child_block}, which has {}",
                         ce.item_count
                     ),
-                    Some(id),
+                    Some(at.id),
                 );
                 return;
             }
@@ -369,24 +380,21 @@ impl Walk<'_> {
                 block: child_block,
                 treelet: index,
             };
-            let inherit = Inherit {
-                cell,
-                depth,
-                max_radius: radius,
-            };
             if !self
                 .slots
                 .await_treelet(key, self.treelet_count(child_block), inherit)
             {
-                v.note_code(Code::TreeShared, format!("LOD node at {pos}: treelet {index} of block {child_block} is reached twice"), Some(id));
+                v.note_code(Code::TreeShared, format!("LOD node at {pos}: treelet {index} of block {child_block} is reached twice"), Some(at.id));
             }
         }
     }
 
-    fn proxy(&self, v: &mut Verifier<'_>, id: u32, pos: usize, proxy: u32) {
+    /// Reports a LOD node's proxy that is not the one standing for the node's block.
+    fn proxy(&self, v: &mut Verifier<'_>, at: At, proxy: u32) {
         if proxy == NO_PROXY {
             return;
         }
+        let (id, pos) = (at.id, at.pos);
         match self.proxy_blocks.get(proxy as usize) {
             Some(&b) if b == id => {}
             Some(&b) => v.note_code(
@@ -525,16 +533,37 @@ fn lod_area(v: &mut Verifier<'_>, id: u32, block: &TreeletBlock<'_>) {
     }
 }
 
+/// Reports a LOD node whose radius exceeds its `ancestor`'s (the nearest LOD node above it) or
+/// falls short of its cell's half diagonal.
+fn lod_radius(v: &mut Verifier<'_>, at: At, radius: f32, ancestor: f32) {
+    let (id, pos, cell) = (at.id, at.pos, at.cell);
+    if radius > ancestor {
+        v.note_code(
+            Code::TreeLodRadius,
+            format!("LOD node at {pos}: radius {radius} exceeds its ancestor's {ancestor}"),
+            Some(id),
+        );
+    }
+    let half_diag = (0..3)
+        .map(|a| (cell[1][a] - cell[0][a]).powi(2))
+        .sum::<f64>()
+        .sqrt()
+        / 2.0;
+    if f64::from(radius) < half_diag * (1.0 - 1e-6) {
+        v.note_code(
+            Code::TreeLodRadius,
+            format!(
+                "LOD node at {pos}: radius {radius} is below its cell's half diagonal {half_diag}"
+            ),
+            Some(id),
+        );
+    }
+}
+
 /// Reports an R-LOD plane that misses its node's enclosing sphere: the plane is fitted through
 /// the centroid of the node's clipped triangles, which lies in the cell.
-fn rlod_plane(
-    v: &mut Verifier<'_>,
-    id: u32,
-    pos: usize,
-    cell: [[f64; 3]; 2],
-    radius: f32,
-    r: &crate::records::Rlod,
-) {
+fn rlod_plane(v: &mut Verifier<'_>, at: At, radius: f32, r: &Rlod) {
+    let (id, pos, cell) = (at.id, at.pos, at.cell);
     let centre_distance = (0..3)
         .map(|a| f64::from(r.normal[a]) * (cell[0][a] + cell[1][a]) / 2.0)
         .sum::<f64>()
@@ -555,12 +584,11 @@ fn rlod_plane(
 /// The two child cells of a split; reports a split plane outside the cell.
 fn split_cell(
     v: &mut Verifier<'_>,
-    id: u32,
-    pos: usize,
-    cell: [[f64; 3]; 2],
+    at: At,
     axis: u8,
     split: f32,
 ) -> ([[f64; 3]; 2], [[f64; 3]; 2]) {
+    let (id, pos, cell) = (at.id, at.pos, at.cell);
     let a = usize::from(axis.min(2));
     let s = f64::from(split);
     if !(cell[0][a] <= s && s <= cell[1][a]) {
