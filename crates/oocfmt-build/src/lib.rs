@@ -1,6 +1,6 @@
 //! `oocfmt-build`: turns triangles into an `.oocf` container.
 //!
-//! [`convert`] is the whole job (import, build in core or out of core, write) with a
+//! [`convert()`] is the whole job (import, build in core or out of core, write) with a
 //! [`report::ConvertReport`]. Its stages are independent so each can be replaced on its own:
 //! [`kdtree`] builds the tree, [`lod`] estimates voxels, proxies and R-LODs, [`layout`] cuts the
 //! tree into treelets, packs blocks and writes the file, and [`ooc`] builds a scene larger than
@@ -34,3 +34,6 @@ pub mod ooc;
 pub mod progress;
 pub mod raycast;
 pub mod report;
+
+pub use convert::{convert, ConvertError, ConvertOptions};
+pub use report::ConvertReport;

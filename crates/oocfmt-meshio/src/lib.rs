@@ -27,4 +27,6 @@ pub mod import;
 pub mod mesh;
 pub mod obj_writer;
 
+pub use export::{ExportError, ExportOptions, ExportReport};
+pub use import::{ImportError, ImportReport, MeshSink, TriangleSink};
 pub use mesh::Mesh;
