@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use oocfmt::records::LodKinds;
 use oocfmt::{Codec, WriteOptions};
 use oocfmt_build::convert::{convert, ConvertOptions, MIN_MEM_LIMIT};
 use oocfmt_build::kdtree::KdBuildOptions;
@@ -40,6 +41,10 @@ pub struct Args {
     /// et al. 2006) or both, in core or out of core alike
     #[arg(long, value_enum, default_value = "voxel")]
     pub lod: LodKindsArg,
+    /// Write opaque, unfiltered LOD records as version 1.1 did (no shade or coverage, spec
+    /// §5.1): for 1.1 readers, and to measure what pre-filtering gains
+    #[arg(long)]
+    pub unfiltered: bool,
     /// Refuse the first bad triangle (NaN, out-of-range index, zero area) instead of dropping it
     #[arg(long)]
     pub strict: bool,
@@ -87,7 +92,11 @@ pub fn run(a: &Args) -> CliResult {
     use_threads(a.threads)?;
     let write = WriteOptions {
         codec: a.codec,
-        lod: a.lod.into(),
+        lod: if a.unfiltered {
+            LodKinds::from(a.lod)
+        } else {
+            LodKinds::from(a.lod).filtered()
+        },
         ..WriteOptions::default()
     }
     .with_block_size(a.block_size)?;

@@ -5,8 +5,8 @@
 
 use oocfmt::records::triangle::{oct_decode, Vertex, ATTR_COLOURS, ATTR_MATERIALS, ATTR_NORMALS};
 use oocfmt::records::{
-    lod_child_treelets, LodEntry, Node, Sample, TreeletBlock, TriangleBlock, Voxel, NODE_BASIC_LEN,
-    NO_PROXY,
+    lod_child_treelets, Footprint, LodEntry, Node, Sample, TreeletBlock, TriangleBlock, Voxel,
+    NODE_BASIC_LEN, NO_PROXY,
 };
 use oocfmt::{Block, BlockEntry, BlockKind, Code, Error, Result};
 
@@ -152,6 +152,10 @@ pub struct Plane {
     pub colour: [f32; 3],
     /// How far past the node's cell the plane still counts, in scene units (spec §6.4).
     pub expansion: f32,
+    /// α: the share of what a ray shows that is this plane (spec §6.4; 1 when unfiltered).
+    pub coverage: f32,
+    /// σ: the factor on the light's cosine (1 when unfiltered).
+    pub shade: f32,
 }
 
 /// What a LOD node shows.
@@ -203,6 +207,9 @@ pub struct TreeletData {
     /// Same index as `lods`.
     looks: Vec<LookAt>,
     samples: Vec<Sample>,
+    /// The samples' footprints, same index; empty when every one is [`Footprint::FULL`] (an
+    /// unfiltered file, or a block of opaque flat voxels).
+    feet: Vec<Footprint>,
     planes: Vec<Plane>,
     /// Node index of each treelet's root.
     pub roots: Vec<u32>,
@@ -234,6 +241,7 @@ struct Scratch {
     lods: Vec<Lod>,
     looks: Vec<LookAt>,
     samples: Vec<Sample>,
+    feet: Vec<Footprint>,
     planes: Vec<Plane>,
     vertices: Vec<Vertex>,
 }
@@ -346,6 +354,7 @@ impl Scratch {
         self.lods.clear();
         self.looks.clear();
         self.samples.clear();
+        self.feet.clear();
         self.planes.clear();
     }
 }
@@ -408,6 +417,11 @@ impl TreeletData {
             lods: s.lods.clone(),
             looks: s.looks.clone(),
             samples: s.samples.clone(),
+            feet: if s.feet.iter().all(|f| f.is_full()) {
+                Vec::new()
+            } else {
+                s.feet.clone()
+            },
             planes: s.planes.clone(),
             roots,
         })
@@ -468,9 +482,14 @@ impl TreeletData {
         let shown = if self.planes.is_empty() {
             let at = (l.at & !SIX) as usize;
             Shown::Voxel(if l.at & SIX != 0 {
-                Voxel::Six(self.samples.get(at..at + 6)?.try_into().ok()?)
+                let feet = match self.feet.get(at..at + 6) {
+                    Some(f) => f.try_into().ok()?,
+                    None => [Footprint::FULL; 6],
+                };
+                Voxel::Six(self.samples.get(at..at + 6)?.try_into().ok()?, feet)
             } else {
-                Voxel::Single(*self.samples.get(at)?)
+                let foot = self.feet.get(at).copied().unwrap_or(Footprint::FULL);
+                Voxel::Single(*self.samples.get(at)?, foot)
             })
         } else {
             Shown::Plane(*self.planes.get(l.at as usize)?)
@@ -486,6 +505,7 @@ impl TreeletData {
             + self.lods.capacity() * std::mem::size_of::<Lod>()
             + self.looks.capacity() * std::mem::size_of::<LookAt>()
             + self.samples.capacity() * std::mem::size_of::<Sample>()
+            + self.feet.capacity() * std::mem::size_of::<Footprint>()
             + self.planes.capacity() * std::mem::size_of::<Plane>()
             + self.roots.capacity() * 4
     }
@@ -497,6 +517,7 @@ impl TreeletData {
             && self.lods.capacity() == self.lods.len()
             && self.looks.capacity() == self.looks.len()
             && self.samples.capacity() == self.samples.len()
+            && self.feet.capacity() == self.feet.len()
             && self.planes.capacity() == self.planes.len()
     }
 }
@@ -518,12 +539,14 @@ fn look(
             let v = entry.voxel.ok_or_else(|| lacks(Code::Voxel, "voxels"))?;
             let at = index_within(s.samples.len(), (SIX - 1) as usize, pos)?;
             Ok(match v {
-                Voxel::Single(x) => {
+                Voxel::Single(x, f) => {
                     s.samples.push(x);
+                    s.feet.push(f);
                     (radius, at)
                 }
-                Voxel::Six(xs) => {
+                Voxel::Six(xs, fs) => {
                     s.samples.extend(xs);
+                    s.feet.extend(fs);
                     (radius, at | SIX)
                 }
             })
@@ -536,6 +559,8 @@ fn look(
                 offset: r.offset,
                 colour: r.colour_f32(),
                 expansion: r.expansion(radius),
+                coverage: r.coverage_f32(),
+                shade: r.shade_f32(),
             });
             Ok((r.error_radius(radius), at))
         }
@@ -712,6 +737,7 @@ mod tests {
             lods: Vec::new(),
             looks: Vec::new(),
             samples: Vec::new(),
+            feet: Vec::new(),
             planes: Vec::new(),
             roots: Vec::new(),
         };

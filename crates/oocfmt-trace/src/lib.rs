@@ -27,6 +27,7 @@ pub mod blocks;
 pub mod cache;
 pub mod camera;
 pub mod compare;
+pub mod composite;
 pub mod error;
 pub mod intersect;
 mod lanes;

@@ -14,6 +14,7 @@ use serde::Serialize;
 
 use crate::cache::{BlockCache, CacheStats};
 use crate::camera::{Camera, Frame};
+use crate::composite::composite;
 use crate::error::TraceError;
 use crate::intersect::Ray;
 use crate::light::{shoulder_light, Shadows};
@@ -40,6 +41,8 @@ struct TileOut {
     rgb: Vec<[u8; 3]>,
     /// Centre-ray depths, in the order of `rgb`.
     depth: Vec<f32>,
+    /// Whether the pixel shows the model ([`Image::model`]), in the order of `rgb`.
+    model: Vec<bool>,
     /// How the tile's centre rays ended.
     endings: Endings,
     /// Shadow and ambient-occlusion rays traced while shading the tile.
@@ -127,6 +130,10 @@ pub struct Image {
     /// Hit distance of the pixel's centre ray along its unit direction, +inf for a miss; same
     /// order as `rgb`.
     pub depth: Vec<f32>,
+    /// Whether the pixel shows the model: its centre ray or one of its sample rays hit
+    /// something (a semi-transparent voxel counts); same order as `depth`. Error measures
+    /// taken "on the model's pixels" use the pixels this marks in either image.
+    pub model: Vec<bool>,
 }
 
 /// How primary rays ended.
@@ -349,6 +356,7 @@ impl<'a> FrameJob<'a> {
             tile,
             rgb: Vec::with_capacity(n),
             depth: Vec::with_capacity(n),
+            model: Vec::with_capacity(n),
             endings: Endings::default(),
             secondary: Secondary::default(),
             visited: 0,
@@ -371,7 +379,8 @@ impl<'a> FrameJob<'a> {
             let hit = hit.take();
             out.endings.record(hit.as_ref());
             out.depth.push(hit.as_ref().map_or(f32::INFINITY, |h| h.t));
-            let colour = self.colour(x, y, &ray, hit.as_ref(), memo, &mut out.secondary);
+            let (colour, sampled) = self.colour(x, y, &ray, hit.as_ref(), memo, &mut out.secondary);
+            out.model.push(hit.is_some() || sampled);
             out.rgb.push(colour);
         }
         memo.flush(self.cache);
@@ -380,8 +389,9 @@ impl<'a> FrameJob<'a> {
     }
 
     /// The shading: the sRGB colour of pixel (x, y), whose centre ray is `centre` and hit
-    /// `hit`. With one ray per pixel that is the centre ray's colour; with more, the
-    /// stratified mean ([`FrameJob::stratified`]).
+    /// `hit`, and whether one of the pixel's sample rays hit the model. With one ray per pixel
+    /// that is the centre ray's colour (and no sample ray); with more, the stratified mean
+    /// ([`FrameJob::stratified`]).
     #[inline]
     fn colour(
         &self,
@@ -391,34 +401,68 @@ impl<'a> FrameJob<'a> {
         hit: Option<&Hit>,
         memo: &mut Memo,
         secondary: &mut Secondary,
-    ) -> [u8; 3] {
+    ) -> ([u8; 3], bool) {
         if self.opts.spp > 1 {
             return self.stratified(x, y, memo, secondary);
         }
-        match hit {
+        let colour = match hit {
             Some(hit) => {
                 let seed = hash(x, y, 0, Stream::Occlusion);
-                self.lighting
-                    .colour(hit, centre, seed, memo, secondary)
+                self.shaded(hit, centre, seed, memo, secondary)
                     .map(encode_srgb)
             }
             None => self.background,
+        };
+        (colour, false)
+    }
+
+    /// The linear RGB colour of `ray`, whose first hit is `hit`: its shade, composited over
+    /// what lies behind when it is a translucent LOD entry ([`composite`]).
+    #[inline]
+    fn shaded(
+        &self,
+        hit: &Hit,
+        ray: &Ray,
+        seed: u64,
+        memo: &mut Memo,
+        secondary: &mut Secondary,
+    ) -> [f32; 3] {
+        if !hit.is_translucent() {
+            return self.lighting.colour(hit, ray, seed, memo, secondary);
         }
+        let lighting = &self.lighting;
+        let mut shade = |h: &Hit, m: &mut Memo| lighting.colour(h, ray, seed, m, secondary);
+        composite(
+            &self.tracer,
+            ray,
+            hit,
+            memo,
+            self.opts.background,
+            &mut shade,
+        )
     }
 
     /// The sRGB encoding of the mean, in linear RGB, of `spp` rays through stratified points
-    /// of pixel (x, y).
+    /// of pixel (x, y), and whether one of them hit the model.
     #[inline]
-    fn stratified(&self, x: u32, y: u32, memo: &mut Memo, secondary: &mut Secondary) -> [u8; 3] {
+    fn stratified(
+        &self,
+        x: u32,
+        y: u32,
+        memo: &mut Memo,
+        secondary: &mut Secondary,
+    ) -> ([u8; 3], bool) {
         let spp = self.opts.spp;
         let mut sum = [0f32; 3];
+        let mut any = false;
         for k in 0..spp {
             let [ox, oy] = pixel_offset(x, y, k, spp);
             let ray = self.frame.ray_at(f64::from(x) + ox, f64::from(y) + oy);
             let c = match self.tracer.trace(&ray, memo) {
                 Some(hit) => {
+                    any = true;
                     let seed = hash(x, y, k, Stream::Occlusion);
-                    self.lighting.colour(&hit, &ray, seed, memo, secondary)
+                    self.shaded(&hit, &ray, seed, memo, secondary)
                 }
                 None => self.opts.background,
             };
@@ -426,7 +470,7 @@ impl<'a> FrameJob<'a> {
                 *s += c;
             }
         }
-        sum.map(|s| encode_srgb(s / spp as f32))
+        (sum.map(|s| encode_srgb(s / spp as f32)), any)
     }
 
     /// Places the finished tiles' pixels in one image and adds up their figures.
@@ -437,6 +481,7 @@ impl<'a> FrameJob<'a> {
             height: h,
             rgb: vec![0; 3 * (w as usize) * (h as usize)],
             depth: vec![f32::INFINITY; (w as usize) * (h as usize)],
+            model: vec![false; (w as usize) * (h as usize)],
         };
         let mut totals = FrameTotals::default();
         for t in done {
@@ -445,11 +490,14 @@ impl<'a> FrameJob<'a> {
             totals.nodes_visited += t.visited;
             let (x0, y0, x1, _) = self.tile_rect(t.tile);
             let tw = (x1 - x0) as usize;
-            for (k, (c, d)) in t.rgb.iter().zip(&t.depth).enumerate() {
+            for (k, ((c, d), m)) in t.rgb.iter().zip(&t.depth).zip(&t.model).enumerate() {
                 let (x, y) = (x0 as usize + k % tw, y0 as usize + k / tw);
                 let at = y * w as usize + x;
                 if let Some(p) = image.depth.get_mut(at) {
                     *p = *d;
+                }
+                if let Some(p) = image.model.get_mut(at) {
+                    *p = *m;
                 }
                 if let Some(p) = image.rgb.get_mut(3 * at..3 * at + 3) {
                     p.copy_from_slice(c);

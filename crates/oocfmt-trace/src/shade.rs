@@ -14,14 +14,15 @@ use crate::occlusion::Occlusion;
 use crate::spawn::{triangle_normal, Origin};
 use crate::traverse::{Hit, Memo, Surface};
 
-/// The colour of surfaces without vertex colours or materials (linear RGB).
-pub const DEFAULT_ALBEDO: [f32; 3] = [0.78, 0.76, 0.72];
+/// The colour of surfaces without vertex colours or materials (linear RGB, spec §8).
+pub use oocfmt::records::triangle::DEFAULT_ALBEDO;
 /// The weight of the ambient term without ambient occlusion.
 pub const AMBIENT: f32 = 0.12;
 /// The weight of the ambient term with ambient occlusion.
 pub const AO_AMBIENT: f32 = 0.35;
 
-/// The linear RGB colour of a hit under the headlight.
+/// The linear RGB colour of a hit under the headlight: the cosine scaled by the hit's shade σ
+/// (spec §5.1), so a pre-filtered LOD sample shows its footprint's mean shade.
 pub fn shade(hit: &Hit, ray: &Ray, materials: &[Material]) -> [f32; 3] {
     let (albedo, normal) = attributes(hit, materials);
     let len = dot(normal, normal).sqrt();
@@ -29,7 +30,7 @@ pub fn shade(hit: &Hit, ray: &Ray, materials: &[Material]) -> [f32; 3] {
         (dot(normal, ray.dir) / len).abs().min(1.0)
     } else {
         1.0
-    };
+    } * hit.shade.clamp(0.0, 1.0);
     let light = AMBIENT + (1.0 - AMBIENT) * cos;
     albedo.map(|c| c.clamp(0.0, 1.0) * light)
 }
@@ -201,18 +202,17 @@ impl<'a> Lighting<'a> {
     ) -> f32 {
         let ShadingPoint { from, g, n } = at;
         let (g, n) = (*g, *n);
+        let sigma = hit.shade.clamp(0.0, 1.0);
         let Some(s) = &self.shadows else {
-            return dot(n, ray.dir.map(|c| -c)).clamp(0.0, 1.0);
+            return sigma * dot(n, ray.dir.map(|c| -c)).clamp(0.0, 1.0);
         };
         match unit_towards(from.point(), s.light()) {
             // The light must be on the viewer's side of the surface.
             Some((l, _)) if dot(g, l) > 0.0 => {
-                let cos = dot(n, l).min(1.0);
+                let cos = sigma * dot(n, l).min(1.0);
                 if cos > 0.0 {
                     counts.shadow += 1;
-                    if s.visible(from, hit.t, memo) {
-                        return cos;
-                    }
+                    return cos * s.visible(from, hit.t, memo);
                 }
                 0.0
             }

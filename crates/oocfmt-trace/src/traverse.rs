@@ -29,7 +29,7 @@ use std::sync::Arc;
 
 use arrayvec::ArrayVec;
 
-use oocfmt::records::{Sample, Voxel, MAX_TREE_DEPTH, PROXY_DIRECTIONS};
+use oocfmt::records::{Footprint, Sample, Voxel, MAX_TREE_DEPTH, PROXY_DIRECTIONS};
 
 use crate::blocks::{NodeView, Plane, Shown, TreeletData, TriangleData, NONE};
 use crate::cache::BlockCache;
@@ -77,6 +77,22 @@ pub struct Hit {
     /// (half the cell's diagonal), or the error radius of the R-LOD: secondary rays start
     /// beyond it. 0 for a triangle.
     pub radius: f32,
+    /// σ, the factor on the light's cosine (spec §5.1): 1 for a triangle, a proxy and every
+    /// LOD entry of an unfiltered file.
+    pub shade: f32,
+    /// α, the share of what the ray shows that is this surface (spec §5.1): below 1 the ray
+    /// goes on from [`Hit::exit`] and what it meets there shows through. 1 for a triangle.
+    pub coverage: f32,
+    /// Where the ray leaves the cell of the LOD node it ended on (`t` for a triangle or a
+    /// proxy): a semi-transparent surface's ray goes on from here.
+    pub exit: f32,
+}
+
+impl Hit {
+    /// Whether what lies behind shows through this surface.
+    pub fn is_translucent(&self) -> bool {
+        self.coverage < 1.0
+    }
 }
 
 /// The last LOD node met on a ray's path: its voxel ends the ray where the data below is
@@ -112,7 +128,18 @@ pub(crate) fn shown(
     radius: f32,
 ) -> Option<(f32, Best<'static>)> {
     match shown {
-        Shown::Voxel(v) => Some((t0, Best::Voxel(voxel_sample(v, axis, ray), radius))),
+        Shown::Voxel(v) => {
+            let (sample, foot) = voxel_sample(v, axis, ray);
+            Some((
+                t0,
+                Best::Voxel {
+                    sample,
+                    foot,
+                    radius,
+                    exit: t1,
+                },
+            ))
+        }
         Shown::Plane(p) => plane_hit(p, ray, t0, t1).map(|t| {
             (
                 t,
@@ -120,6 +147,9 @@ pub(crate) fn shown(
                     normal: p.normal,
                     colour: p.colour,
                     radius,
+                    coverage: p.coverage,
+                    shade: p.shade,
+                    exit: t1.max(t),
                 },
             )
         }),
@@ -170,13 +200,17 @@ struct Walk<'r, 'm> {
     lasts: Lasts<'m>,
     best: Best<'m>,
     best_t: f32,
+    /// Where the ray starts: 0, or past the translucent surface it goes on behind. Nothing
+    /// nearer counts, not even a cell that only touches the start (the one just left).
+    t_min: f32,
 }
 
 impl<'m> Walk<'_, 'm> {
-    /// Keeps `found` when it is nearer than the nearest surface so far.
+    /// Keeps `found` when it is nearer than the nearest surface so far and not before the
+    /// ray's start (a plane's hit may lie up to its expansion outside its cell).
     #[inline(always)]
     fn offer(&mut self, found: Option<(f32, Best<'m>)>) {
-        if let Some((t, s)) = found.filter(|&(t, _)| t < self.best_t) {
+        if let Some((t, s)) = found.filter(|&(t, _)| t < self.best_t && t >= self.t_min) {
             self.best_t = t;
             self.best = s;
         }
@@ -202,13 +236,22 @@ pub(crate) enum Best<'m> {
         triangle: u32,
         bary: [f32; 3],
     },
-    /// A sample and the radius of its cell.
-    Voxel(Sample, f32),
+    /// A voxel's sample and footprint, the radius of its cell and where the ray leaves it.
+    Voxel {
+        sample: Sample,
+        foot: Footprint,
+        radius: f32,
+        exit: f32,
+    },
+    /// A proxy's sample and the radius of its node's cell.
     Proxy(Sample, f32),
     Plane {
         normal: [f32; 3],
         colour: [f32; 3],
         radius: f32,
+        coverage: f32,
+        shade: f32,
+        exit: f32,
     },
 }
 
@@ -380,9 +423,16 @@ impl<'a> Tracer<'a> {
     /// Where the ray first meets the scene closer than `t_max` (exclusive), or None: a shadow
     /// ray towards a light at distance `t_max` is occluded when this returns a hit.
     pub fn trace_to(&self, ray: &Ray, t_max: f32, memo: &Memo) -> Option<Hit> {
+        self.trace_between(ray, 0.0, t_max, memo)
+    }
+
+    /// Where the ray first meets the scene between `t_min` and `t_max`, or None: how a ray
+    /// goes on behind a semi-transparent surface ([`Hit::exit`]).
+    pub fn trace_between(&self, ray: &Ray, t_min: f32, t_max: f32, memo: &Memo) -> Option<Hit> {
         let eps = self.ray_eps(ray);
         let t_max = if t_max.is_nan() { f32::INFINITY } else { t_max };
-        let (t0, t1, axis) = ray_box(ray, self.lo, self.hi, eps, 0.0, t_max)?;
+        let t_min = if t_min.is_nan() { 0.0 } else { t_min.max(0.0) };
+        let (t0, t1, axis) = ray_box(ray, self.lo, self.hi, eps, t_min, t_max)?;
         let (root_block, root_treelet) = self.root?;
         let Some(root_data) = memo.treelets(self.cache, root_block) else {
             memo.want(root_block, f32::INFINITY, t0);
@@ -396,6 +446,7 @@ impl<'a> Tracer<'a> {
             lasts: Lasts::new(),
             best: Best::None,
             best_t: t_max,
+            t_min,
         };
         w.stack.push(Entry {
             data: root_data,
@@ -477,6 +528,10 @@ impl<'a> Tracer<'a> {
         let Some(l) = data.lods.get(lod as usize) else {
             return ControlFlow::Break(());
         };
+        if w.t_min > 0.0 && at.t1 <= w.t_min {
+            // The cell only touches where the ray goes on from: it is the one just left.
+            return ControlFlow::Break(());
+        }
         at.lods = push_last(
             &mut w.lasts,
             LastVoxel {
@@ -549,7 +604,7 @@ impl<'a> Tracer<'a> {
                 let first = usize::from(first);
                 let list = td.list.get(first..first + usize::from(count));
                 let list = list.unwrap_or(&[]);
-                if let Some((ti, h)) = w.ray.nearest(list, &td.positions, w.best_t) {
+                if let Some((ti, h)) = w.ray.nearest(list, &td.positions, w.t_min, w.best_t) {
                     w.best_t = h.t;
                     w.best = Best::Triangle {
                         data: td,
@@ -580,6 +635,7 @@ impl<'a> Tracer<'a> {
 impl Best<'_> {
     /// The hit this nearest surface at `t` makes; None for none.
     pub(crate) fn hit(self, t: f32) -> Option<Hit> {
+        let (mut shade, mut coverage, mut exit) = (1.0, 1.0, t);
         let (surface, radius) = match self {
             Best::None => return None,
             Best::Triangle {
@@ -594,15 +650,36 @@ impl Best<'_> {
                 },
                 0.0,
             ),
-            Best::Voxel(s, r) => (Surface::Voxel(s), r),
+            Best::Voxel {
+                sample,
+                foot,
+                radius,
+                exit: e,
+            } => {
+                (shade, coverage, exit) = (foot.shade_f32(), foot.coverage_f32(), e.max(t));
+                (Surface::Voxel(sample), radius)
+            }
             Best::Proxy(s, r) => (Surface::Proxy(s), r),
             Best::Plane {
                 normal,
                 colour,
                 radius,
-            } => (Surface::Plane { normal, colour }, radius),
+                coverage: c,
+                shade: s,
+                exit: e,
+            } => {
+                (shade, coverage, exit) = (s, c, e.max(t));
+                (Surface::Plane { normal, colour }, radius)
+            }
         };
-        Some(Hit { t, surface, radius })
+        Some(Hit {
+            t,
+            surface,
+            radius,
+            shade,
+            coverage,
+            exit,
+        })
     }
 }
 
@@ -658,18 +735,18 @@ fn split_sides(
     }
 }
 
-/// The sample of the face a ray entered the voxel's cell through (−x, +x, −y, +y, −z, +z).
-pub(crate) fn voxel_sample(v: &Voxel, axis: u8, ray: &Ray) -> Sample {
+/// The sample and footprint of the face a ray entered the voxel's cell through (−x, +x, −y,
+/// +y, −z, +z).
+pub(crate) fn voxel_sample(v: &Voxel, axis: u8, ray: &Ray) -> (Sample, Footprint) {
     match v {
-        Voxel::Single(s) => *s,
-        Voxel::Six(s) => {
+        Voxel::Single(s, f) => (*s, *f),
+        Voxel::Six(..) => {
             let a = if axis < 3 {
                 usize::from(axis)
             } else {
                 major_axis(ray.dir)
             };
-            let face = 2 * a + usize::from(ray.dir[a] < 0.0);
-            s.get(face).copied().unwrap_or(s[0])
+            v.face(2 * a + usize::from(ray.dir[a] < 0.0))
         }
     }
 }

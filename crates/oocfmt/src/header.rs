@@ -10,9 +10,12 @@ pub const MAGIC: [u8; 8] = [0x89, b'O', b'C', b'F', b'\r', b'\n', 0x1a, b'\n'];
 /// The major version this crate reads and writes.
 pub const VERSION_MAJOR: u16 = 1;
 /// The newest minor version this crate knows; it reads every minor of [`VERSION_MAJOR`]. It
-/// writes [`VERSION_MINOR_BASE`] for files that use nothing added since (voxel-only files stay
-/// byte-identical to 1.0 ones), and this for files with R-LODs.
-pub const VERSION_MINOR: u16 = 1;
+/// writes [`VERSION_MINOR_BASE`] for files that use nothing added since (unfiltered voxel-only
+/// files stay byte-identical to 1.0 ones), [`VERSION_MINOR_RLODS`] for unfiltered files with
+/// R-LODs, and this for pre-filtered files.
+pub const VERSION_MINOR: u16 = 2;
+/// The minor version that added R-LODs.
+pub const VERSION_MINOR_RLODS: u16 = 1;
 /// The minor version of files that use no feature added after 1.0.
 pub const VERSION_MINOR_BASE: u16 = 0;
 /// Smallest allowed `block_size_log2`: blocks of 4 KiB.
@@ -32,8 +35,11 @@ pub const KNOWN_COMPAT: u64 = COMPAT_PROXIES | COMPAT_LOD_VOXELS;
 pub const INCOMPAT_LOD_RLODS: u64 = 1 << 0;
 /// LOD nodes carry no voxel (only with [`INCOMPAT_LOD_RLODS`]); since 1.1.
 pub const INCOMPAT_LOD_NO_VOXELS: u64 = 1 << 1;
+/// Voxel samples may carry footprints and R-LOD records a shade and a coverage (spec §5.1);
+/// since 1.2.
+pub const INCOMPAT_LOD_FILTERED: u64 = 1 << 2;
 /// Incompatible feature bits defined by this version.
-pub const KNOWN_INCOMPAT: u64 = INCOMPAT_LOD_RLODS | INCOMPAT_LOD_NO_VOXELS;
+pub const KNOWN_INCOMPAT: u64 = INCOMPAT_LOD_RLODS | INCOMPAT_LOD_NO_VOXELS | INCOMPAT_LOD_FILTERED;
 
 // Field offsets, each built from the one before so prose and code cannot drift apart.
 /// Byte offset in the header of [`MAGIC`].

@@ -12,7 +12,7 @@ use crate::directory::{BlockEntry, BlockKind, CodecId};
 use crate::error::{Error, Result};
 use crate::header::{
     Header, SectionTable, COMPAT_LOD_VOXELS, COMPAT_PROXIES, DEFAULT_BLOCK_SIZE_LOG2, HEADER_LEN,
-    MAX_BLOCK_SIZE_LOG2, MIN_BLOCK_SIZE_LOG2, OFF_HEADER_CRC, VERSION_MINOR,
+    MAX_BLOCK_SIZE_LOG2, MIN_BLOCK_SIZE_LOG2, OFF_HEADER_CRC,
 };
 use crate::metadata::Metadata;
 use crate::records::LodKinds;
@@ -38,7 +38,8 @@ pub struct WriteOptions {
     pub block_size_log2: u8,
     /// The codec blocks are compressed with; a block it does not shrink is stored raw.
     pub codec: Codec,
-    /// What the LOD nodes carry: the header's LOD feature bits and, with R-LODs, minor 1.
+    /// What the LOD nodes carry: the header's LOD feature bits and the minor version
+    /// ([`LodKinds::minor_version`]). Pre-filtered voxels by default.
     pub lod: LodKinds,
 }
 
@@ -47,7 +48,7 @@ impl Default for WriteOptions {
         WriteOptions {
             block_size_log2: DEFAULT_BLOCK_SIZE_LOG2,
             codec: Codec::default(),
-            lod: LodKinds::VOXEL,
+            lod: LodKinds::VOXEL.filtered(),
         }
     }
 }
@@ -175,9 +176,7 @@ impl<F: OutputFile> Writer<F> {
             header: {
                 let mut h = Header::new(opts.block_size_log2);
                 h.incompatible_features = opts.lod.incompatible_bits();
-                if h.incompatible_features != 0 {
-                    h.minor = VERSION_MINOR;
-                }
+                h.minor = opts.lod.minor_version();
                 h
             },
             codec: opts.codec,

@@ -397,8 +397,8 @@ fn metadata(
     }
     for d in plan.lod.iter().filter(|_| plan.kinds.voxel) {
         match d.voxel {
-            Voxel::Single(_) => counts.voxels_single += 1,
-            Voxel::Six(_) => counts.voxels_six += 1,
+            Voxel::Single(..) => counts.voxels_single += 1,
+            Voxel::Six(..) => counts.voxels_six += 1,
         }
     }
     for (_, c) in triangle_blocks {

@@ -127,7 +127,8 @@ impl TreePlan {
     /// Bytes of a LOD node's entry in the LOD area.
     pub fn lod_entry_bytes(&self, id: NodeId) -> usize {
         let voxel = if self.kinds.voxel {
-            self.lod_data(id).map_or(0, |d| d.voxel.byte_len())
+            self.lod_data(id)
+                .map_or(0, |d| d.voxel.byte_len(self.kinds.filtered))
         } else {
             0
         };

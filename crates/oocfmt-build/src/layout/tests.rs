@@ -160,7 +160,7 @@ impl ReadBack<'_> {
                     let sum = t
                         .walk(|_, _, n| {
                             if let Node::Lod { voxel_offset, .. } = n {
-                                six |= matches!(t.voxel(*voxel_offset), Ok(Voxel::Six(_)));
+                                six |= matches!(t.voxel(*voxel_offset), Ok(Voxel::Six(_, _)));
                             }
                             Ok(())
                         })

@@ -130,13 +130,14 @@ impl Encoder<'_> {
             .plan
             .kinds
             .voxel
-            .then(|| self.w.push_voxel(&data.voxel));
+            .then(|| self.w.push_voxel(&data.voxel, self.plan.kinds.filtered));
         let rlod_at = match self.plan.kinds.rlod {
             true => Some(
                 self.w.push_rlod(
                     self.plan
                         .rlod(id)
                         .ok_or(LayoutError::Internal("a LOD node has no R-LOD"))?,
+                    self.plan.kinds.filtered,
                 ),
             ),
             false => None,

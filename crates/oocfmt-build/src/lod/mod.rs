@@ -9,14 +9,15 @@
 //! rays over the cell's silhouette. Ray counts grow with the subtree up to a fixed cap, so a
 //! node costs O(rays × depth), not O(triangles).
 
-mod halton;
 pub mod rlod;
 mod sampling;
+mod sequence;
 mod totals;
 
 pub(crate) use totals::Totals;
 
-use oocfmt::records::{ProxyRecord, Rlod, Sample, Voxel};
+use oocfmt::records::triangle::DEFAULT_ALBEDO;
+use oocfmt::records::{Footprint, ProxyRecord, Rlod, Sample, Voxel};
 use rayon::prelude::*;
 
 use crate::kdtree::{KdNode, KdTree, NodeId};
@@ -59,8 +60,9 @@ pub fn rlods(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId]) -> Vec<Rlod> {
 
 /// The value recorded under `lod_sampling` in the build parameters: the method and the ray
 /// counts above (checked against them by a test).
-pub const LOD_SAMPLING: &str = "first-hit rays, Halton 2/3: 1 per 8 triangles per face \
-     (4..16, 64 if uncertain), 1 per 24 per diagonal (2..16, else blended faces)";
+pub const LOD_SAMPLING: &str = "first-hit rays, Owen-scrambled Sobol: 1 per 8 triangles per face \
+     (4..16, x4 while uncertain up to 256), 1 per 24 per diagonal (2..16, else blended faces); \
+     shade and coverage per face";
 /// The default largest difference (normal component or colour channel) between a face sample
 /// and the mean for a voxel to be stored as one sample.
 pub const DEFAULT_VOXEL_THRESHOLD: f32 = 0.1;
@@ -310,7 +312,8 @@ fn node_lod<'a>(
             } else {
                 subtree_triangles(tree, id)
             };
-            Voxel::Single(unoccluded_mean(mesh, &tris))
+            // No ray hit: whatever is there covers too little of the cell to be seen.
+            Voxel::Single(unoccluded_mean(mesh, &tris), Footprint::new(1.0, 0.0))
         }),
         proxy_samples: sampled.proxy,
         area: (totals.area as f32).min(f32::MAX),
@@ -337,9 +340,10 @@ pub fn sample_cell(cell: Bounds, threshold: f32, area: f64, answer: Oracle<'_>) 
     }
     .run();
     LodData {
-        voxel: sampled
-            .voxel
-            .unwrap_or(Voxel::Single(Sample::pack([0.0, 0.0, 1.0], [0.5; 3]))),
+        voxel: sampled.voxel.unwrap_or(Voxel::Single(
+            Sample::pack([0.0, 0.0, 1.0], [0.5; 3]),
+            Footprint::new(1.0, 0.0),
+        )),
         proxy_samples: sampled.proxy,
         area: (area as f32).min(f32::MAX),
     }
@@ -375,7 +379,7 @@ fn unoccluded_mean(mesh: &Mesh, tris: &[u32]) -> Sample {
     let colour = if weight > 0.0 {
         colour.map(|c| (c / weight) as f32)
     } else {
-        [1.0; 3]
+        DEFAULT_ALBEDO
     };
     Sample::pack(normalise(normal).map(|c| c as f32), colour)
 }
@@ -399,13 +403,18 @@ pub(crate) fn mean_vertex_colour(colours: impl IntoIterator<Item = [u8; 4]>) -> 
     sum
 }
 
-/// The triangle's material's diffuse colour, else white.
+/// The triangle's material's diffuse colour, else the default albedo (spec §8).
 fn material_colour(mesh: &Mesh, t: usize) -> [f64; 3] {
     mesh.materials
         .as_ref()
         .and_then(|m| m.get(t))
         .and_then(|&m| mesh.material_table.get(usize::from(m)))
-        .map_or([1.0; 3], |m| m.diffuse.map(f64::from))
+        .map_or(default_albedo(), |m| m.diffuse.map(f64::from))
+}
+
+/// [`DEFAULT_ALBEDO`] in f64.
+pub(crate) fn default_albedo() -> [f64; 3] {
+    DEFAULT_ALBEDO.map(f64::from)
 }
 
 /// The largest difference of a normal component or colour channel, as stored.
@@ -416,5 +425,7 @@ fn difference(a: Sample, b: Sample) -> f32 {
         .fold(0.0, f32::max)
 }
 
+#[cfg(test)]
+mod footprint_tests;
 #[cfg(test)]
 mod tests;

@@ -32,6 +32,15 @@ pub struct PlaneFit {
     pub colour: [f64; 3],
     /// Area of the clipped triangles.
     pub area: f64,
+    /// Area of the plane's part inside the cell: what the coverage is a share of.
+    pub section: f64,
+    /// Σ over the clipped polygons measured so far ([`Deviation`]) of their area projected on
+    /// the plane, |A · n|.
+    pub projected: f64,
+    /// Σ of their area vectors, each turned to agree with the normal.
+    pub turned: [f64; 3],
+    /// Σ of their areas |A|.
+    pub measured_area: f64,
 }
 
 /// Sums over clipped polygons, relative to the cell's centre.
@@ -187,7 +196,7 @@ impl PlaneMoments {
         let colour = if m.colour_weight > 0.0 {
             m.colour.map(|c| c / m.colour_weight)
         } else {
-            [1.0; 3]
+            super::default_albedo()
         };
         let (point, normal) = if m.area > 0.0 {
             let (mean, normal, _) = principal(m.first, m.second, m.area);
@@ -227,6 +236,10 @@ impl PlaneMoments {
             stored_deviation: 0.0,
             colour,
             area: m.area,
+            section: section_area(&self.frame, normal, point),
+            projected: 0.0,
+            turned: [0.0; 3],
+            measured_area: 0.0,
         };
         (plane, point)
     }
@@ -292,6 +305,14 @@ impl Deviation {
                 .stored_deviation
                 .max((dot(self.stored_normal, *v) + self.shift).abs());
         }
+        let area = area_vector(&self.scratch.out);
+        let along = dot(area, p.normal);
+        p.projected += along.abs();
+        p.measured_area += dot(area, area).sqrt();
+        let sign = if along < 0.0 { -1.0 } else { 1.0 };
+        for (t, a) in p.turned.iter_mut().zip(area) {
+            *t += sign * a;
+        }
     }
 
     /// The plane with the largest deviations found, as fitted and as stored.
@@ -302,9 +323,35 @@ impl Deviation {
 
 impl PlaneFit {
     /// Folds in the deviations another piece of the same node measured against this plane.
+    /// Its projected and measured areas add up: the pieces of a partition are disjoint.
     pub fn widen(&mut self, piece: &PlaneFit) {
         self.deviation = self.deviation.max(piece.deviation);
         self.stored_deviation = self.stored_deviation.max(piece.stored_deviation);
+        self.projected += piece.projected;
+        self.measured_area += piece.measured_area;
+        for (t, p) in self.turned.iter_mut().zip(piece.turned) {
+            *t += p;
+        }
+    }
+
+    /// The share of the plane's part in the cell the triangles cover, seen along the normal,
+    /// at most 1 (1 when the plane has no part in the cell to cover).
+    pub fn coverage(&self) -> f64 {
+        if self.section > 0.0 {
+            (self.projected / self.section).min(1.0)
+        } else {
+            1.0
+        }
+    }
+
+    /// The length of the area-weighted mean unit normal of the triangles, each turned to agree
+    /// with the plane's normal (1 without area).
+    pub fn shade(&self) -> f64 {
+        if self.measured_area > 0.0 {
+            (dot(self.turned, self.turned).sqrt() / self.measured_area).min(1.0)
+        } else {
+            1.0
+        }
     }
 
     /// The record of this plane for a LOD node of enclosing radius `radius`. Its deviation
@@ -321,6 +368,8 @@ impl PlaneFit {
                 .map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8),
             deviation_code: Rlod::code_for(deviation, r),
             expansion_code: Rlod::code_for(deviation + EXPANSION_SLACK * r, r),
+            coverage: share_code(self.coverage()),
+            shade: share_code(self.shade()),
         }
     }
 
@@ -350,6 +399,58 @@ fn principal(first: [f64; 3], second: [f64; 6], weight: f64) -> ([f64; 3], [f64;
     ];
     let trace = cov[0][0] + cov[1][1] + cov[2][2];
     (m, smallest_eigenvector(cov), trace)
+}
+
+/// A share in 0..=1 as a code of value / 255, rounded to nearest.
+fn share_code(x: f64) -> u8 {
+    (x.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+/// The area vector of a planar polygon (half the sum of its fan's cross products).
+fn area_vector(poly: &[[f64; 3]]) -> [f64; 3] {
+    let mut sum = [0.0; 3];
+    if let Some(&a) = poly.first() {
+        for w in poly.windows(2).skip(1) {
+            let n = cross(sub(w[0], a), sub(w[1], a));
+            for (s, n) in sum.iter_mut().zip(n) {
+                *s += 0.5 * n;
+            }
+        }
+    }
+    sum
+}
+
+/// The area of the plane through `point` with unit normal `normal` inside the frame's cell
+/// (all relative to the cell's centre): a square on the plane larger than the cell, clipped
+/// to it.
+fn section_area(frame: &Frame, normal: [f64; 3], point: [f64; 3]) -> f64 {
+    let half = dot(sub(frame.hi, frame.lo), sub(frame.hi, frame.lo)).sqrt();
+    // The point of the plane nearest the centre, and two unit vectors spanning the plane.
+    let centre: [f64; 3] = std::array::from_fn(|k| dot(normal, point) * normal[k]);
+    let helper = if normal[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let u = normalise(cross(normal, helper));
+    let v = cross(normal, u);
+    let corner = |a: f64, b: f64| -> [f64; 3] {
+        std::array::from_fn(|k| centre[k] + half * (a * u[k] + b * v[k]))
+    };
+    let (p, q, r, t) = (
+        corner(-1.0, -1.0),
+        corner(1.0, -1.0),
+        corner(1.0, 1.0),
+        corner(-1.0, 1.0),
+    );
+    let mut clip = Clip::default();
+    let mut area = 0.0;
+    for tri in [[p, q, r], [p, r, t]] {
+        clip.clip(tri, frame.lo, frame.hi);
+        let a = area_vector(&clip.out);
+        area += dot(a, a).sqrt();
+    }
+    area
 }
 
 /// Sutherland–Hodgman clipping of a triangle against a box, reusing its buffers.
@@ -642,10 +743,10 @@ mod tests {
             let r = fit.record(2.6);
             let bytes = {
                 let mut v = Vec::new();
-                r.encode_into(&mut v);
+                r.encode_into(&mut v, true);
                 v
             };
-            assert!(Rlod::decode(&bytes, 0).is_ok(), "{tris:?}: {r:?}");
+            assert!(Rlod::decode(&bytes, 0, true).is_ok(), "{tris:?}: {r:?}");
         }
         // The collinear triangle's points all lie in the plane through their centroid.
         let fit = fit(&mesh, &[0], c);

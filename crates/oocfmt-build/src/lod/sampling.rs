@@ -1,9 +1,9 @@
 //! Ray sampling of one LOD node: rays from outside its cell, through its faces, against its
 //! own subtree; the first hit of each ray is what a viewer on that side sees.
 
-use oocfmt::records::{Sample, Voxel, PROXY_DIRECTIONS};
+use oocfmt::records::{Footprint, Sample, Voxel, PROXY_DIRECTIONS};
 
-use super::halton;
+use super::sequence;
 use crate::kdtree::NodeId;
 use crate::raycast::{
     clip_to_box, cross, dot, first_hit_of, normalise, sub, Hit, Prepared, Ray, Tracer, PACKET_MAX,
@@ -11,8 +11,9 @@ use crate::raycast::{
 use oocfmt_meshio::mesh::{Bounds, Mesh};
 
 /// Rays per voxel face: one per `TRIANGLES_PER_FACE_RAY` subtree triangles, clamped to
-/// `MIN ..= BASE`, and up to `MAX` when the first `BASE` leave the face's mean uncertain (a
-/// standard error above half the one-sample threshold).
+/// `MIN ..= BASE`, then four times as many, up to `MAX`, while the rays so far leave the
+/// face's sample uncertain: a standard error of its mean normal, colour or coverage above half
+/// the one-sample threshold. Coverage counts: a comb of strips looks the same on every hit.
 /// Small subtrees get few rays: the lowest LOD levels hold most LOD nodes, and a handful of
 /// triangles shows little detail anyway.
 pub const FACE_RAYS_MIN: usize = 4;
@@ -20,8 +21,9 @@ pub const FACE_RAYS_MIN: usize = 4;
 /// gets more, up to [`FACE_RAYS_MAX`].
 pub const FACE_RAYS_BASE: usize = 16;
 /// The most rays per face in all: uncertain faces, and every face of an out-of-core node,
-/// whose ray sequence must be fixed before any ray is answered.
-pub const FACE_RAYS_MAX: usize = 64;
+/// whose ray sequence must be fixed before any ray is answered. A coverage of ½ measured by
+/// this many unstratified rays has a standard error of 1/32.
+pub const FACE_RAYS_MAX: usize = 256;
 /// Subtree triangles per face ray in the first round (see [`FACE_RAYS_MIN`]).
 pub const TRIANGLES_PER_FACE_RAY: usize = 8;
 /// Rays per diagonal proxy direction: one per `TRIANGLES_PER_DIAGONAL_RAY` subtree triangles,
@@ -91,6 +93,15 @@ impl Acc {
             .fold(0.0, f64::max)
     }
 
+    /// The largest standard error of the sample's means (normal and colour, over the hits)
+    /// and of its coverage (a share of the rays).
+    fn standard_error(&self) -> f64 {
+        let c = self.coverage();
+        let of_means = self.spread() / f64::from(self.hits.max(1)).sqrt();
+        let of_coverage = (c * (1.0 - c)).sqrt() / f64::from(self.rays.max(1)).sqrt();
+        of_means.max(of_coverage)
+    }
+
     fn mean_colour(&self) -> [f32; 3] {
         let h = f64::from(self.hits.max(1));
         self.colour.map(|c| (c / h) as f32)
@@ -99,6 +110,19 @@ impl Acc {
     /// The sample as seen along the rays, or `None` without hits.
     fn facing_sample(&self) -> Option<Sample> {
         (self.hits > 0).then(|| Sample::pack(self.facing.map(|c| c as f32), self.mean_colour()))
+    }
+
+    /// σ: the length of the mean facing unit normal (spec §5.1), 1 without hits.
+    fn shade(&self) -> f64 {
+        if self.hits == 0 {
+            return 1.0;
+        }
+        dot(self.facing, self.facing).sqrt() / f64::from(self.hits)
+    }
+
+    /// α: the share of the rays that hit (0 when none were cast).
+    fn coverage(&self) -> f64 {
+        f64::from(self.hits) / f64::from(self.rays.max(1))
     }
 }
 
@@ -124,6 +148,8 @@ struct Frame {
     lo: [f64; 3],
     ext: [f64; 3],
     eps: f64,
+    /// Each face's scramble of the ray pattern ([`sequence::seed`]).
+    seeds: [u64; 6],
 }
 
 impl Frame {
@@ -154,7 +180,13 @@ impl NodeSampler<'_, '_> {
         // Rays start on the cell's boundary, often on a surface lying in it: allow hits a
         // rounding error behind the start.
         let eps = 1e-9 * (diag + scale);
-        let frame = Frame { lo, ext, eps };
+        let seeds = std::array::from_fn(|f| sequence::seed(f, self.cell.min, self.cell.max));
+        let frame = Frame {
+            lo,
+            ext,
+            eps,
+            seeds,
+        };
         let face_area = |f: usize| frame.face_area(f);
 
         let mut faces = [Acc::default(); 6];
@@ -171,11 +203,16 @@ impl NodeSampler<'_, '_> {
             let mut dir = [0.0; 3];
             dir[a] = if f % 2 == 0 { 1.0 } else { -1.0 };
             self.cast_face(acc, f, dir, 0..base, &frame);
-            // More rays where the mean's standard error could move the sample by half the
-            // one-sample threshold.
-            let uncertain = acc.spread() / (base as f64).sqrt() > f64::from(self.threshold) / 2.0;
-            if base == FACE_RAYS_BASE && uncertain {
-                self.cast_face(acc, f, dir, base..FACE_RAYS_MAX, &frame);
+            // More rays where the standard error could move the sample by half the one-sample
+            // threshold.
+            let mut cast = base;
+            while cast >= FACE_RAYS_BASE
+                && cast < FACE_RAYS_MAX
+                && acc.standard_error() > f64::from(self.threshold) / 2.0
+            {
+                let more = (4 * cast).min(FACE_RAYS_MAX);
+                self.cast_face(acc, f, dir, cast..more, &frame);
+                cast = more;
             }
         }
         let areas: [f64; 6] = std::array::from_fn(face_area);
@@ -211,7 +248,7 @@ impl NodeSampler<'_, '_> {
         }
     }
 
-    /// Casts rays `range` of face `f`'s Halton sequence straight through the cell.
+    /// Casts rays `range` of face `f`'s sequence ([`sequence`]) straight through the cell.
     fn cast_face(
         &mut self,
         acc: &mut Acc,
@@ -220,7 +257,7 @@ impl NodeSampler<'_, '_> {
         range: std::ops::Range<usize>,
         frame: &Frame,
     ) {
-        let (lo, ext, eps) = (&frame.lo, &frame.ext, frame.eps);
+        let (ext, eps) = (&frame.ext, frame.eps);
         if let Target::Subtree(node) = self.target {
             // A face's rays share their direction and starting plane: traced together.
             for part in range.clone().step_by(PACKET_MAX) {
@@ -229,7 +266,7 @@ impl NodeSampler<'_, '_> {
                 let mut hits = [None; PACKET_MAX];
                 let n = end - part;
                 for (ray, i) in rays.iter_mut().zip(part..end) {
-                    *ray = Ray::new(face_point(f, i, lo, ext), dir);
+                    *ray = Ray::new(face_point(f, i, frame), dir);
                 }
                 let (rays, hits) = (&rays[..n], &mut hits[..n]);
                 self.tracer
@@ -244,7 +281,7 @@ impl NodeSampler<'_, '_> {
             return;
         }
         for i in range {
-            let origin = face_point(f, i, lo, ext);
+            let origin = face_point(f, i, frame);
             let ray = Ray::new(origin, dir);
             acc.rays += 1;
             self.trace(acc, &ray, ext[f / 2], eps);
@@ -254,7 +291,7 @@ impl NodeSampler<'_, '_> {
     /// Casts `rays` rays along `dir` from the faces it enters through, spread over them in
     /// proportion to their projected areas, so they cover the cell's silhouette evenly.
     fn cast_direction(&mut self, dir: [f64; 3], rays: usize, frame: &Frame) -> Acc {
-        let (lo, ext, eps) = (&frame.lo, &frame.ext, frame.eps);
+        let eps = frame.eps;
         let mut acc = Acc::default();
         // Face f's outward normal is −axis for even f, +axis for odd f; it is entered by a
         // ray whose direction points against that normal.
@@ -283,7 +320,7 @@ impl NodeSampler<'_, '_> {
                 }
             }
             let Some(n) = used.get_mut(f) else { continue };
-            let origin = face_point(f, *n, lo, ext);
+            let origin = face_point(f, *n, frame);
             *n += 1;
             let ray = Ray::new(origin, dir);
             acc.rays += 1;
@@ -352,11 +389,13 @@ fn blend(faces: &[Acc; 6], areas: &[f64; 6], dir: [f64; 3]) -> Sample {
     Sample::pack(normal.map(|c| c as f32), colour.map(|c| (c / total) as f32))
 }
 
-/// Point `i` of the Halton sequence on face `f` of the cell `lo + [0, ext]`.
-fn face_point(f: usize, i: usize, lo: &[f64; 3], ext: &[f64; 3]) -> [f64; 3] {
+/// Point `i` of face `f`'s scrambled sequence on the frame's cell `lo + [0, ext]`.
+fn face_point(f: usize, i: usize, frame: &Frame) -> [f64; 3] {
+    let (lo, ext) = (&frame.lo, &frame.ext);
     let a = f / 2;
     let (u, v) = ((a + 1) % 3, (a + 2) % 3);
-    let [hu, hv] = halton::point(i as u64);
+    let seed = frame.seeds.get(f).copied().unwrap_or(0);
+    let [hu, hv] = sequence::point(i as u64, seed);
     let mut o = *lo;
     if f % 2 == 1 {
         o[a] += ext[a];
@@ -422,10 +461,12 @@ fn shade_at(mesh: &Mesh, hit: &Hit, corners: [[f32; 3]; 3], dir: [f64; 3]) -> Op
 
 /// The voxel from the six faces' hits, `None` when no face saw anything.
 ///
-/// Each face's sample shows the surface turned towards that face's rays. Whether one sample
-/// will do is decided on the normals brought to one orientation first: a flat patch looks the
-/// same from its front and its back, and a renderer turns the normal towards the viewer
-/// anyway; only with all six agreeing is it stored once, oriented as the mesh orients it.
+/// Each face's sample shows the surface turned towards that face's rays, with its footprint:
+/// the share of the rays that hit and the length of their mean normal (spec §5.1). Whether one
+/// sample will do is decided on the normals brought to one orientation first: a flat patch
+/// looks the same from its front and its back, and a renderer turns the normal towards the
+/// viewer anyway; only with all six agreeing (shade and coverage included) is it stored once,
+/// oriented as the mesh orients it.
 fn voxel(faces: &[Acc; 6], areas: &[f64; 6], threshold: f32) -> Option<Voxel> {
     let hits: u32 = faces.iter().map(|f| f.hits).sum();
     if hits == 0 {
@@ -434,14 +475,7 @@ fn voxel(faces: &[Acc; 6], areas: &[f64; 6], threshold: f32) -> Option<Voxel> {
     let units: [[f64; 3]; 6] = std::array::from_fn(|f| normalise(faces[f].facing));
     let raw: [f64; 3] = std::array::from_fn(|a| faces.iter().map(|f| f.raw[a]).sum());
     // Visible area through each face: its area times the share of its rays that hit.
-    let weights: [f64; 6] = std::array::from_fn(|f| {
-        let acc = &faces[f];
-        if acc.hits == 0 {
-            0.0
-        } else {
-            areas[f] * f64::from(acc.hits) / f64::from(acc.rays.max(1))
-        }
-    });
+    let weights: [f64; 6] = std::array::from_fn(|f| areas[f] * faces[f].coverage());
     let heaviest = (0..6).fold(0, |b, f| if weights[f] > weights[b] { f } else { b });
     let reference = if dot(raw, raw).sqrt() > 1e-9 * f64::from(hits) {
         raw
@@ -456,7 +490,7 @@ fn voxel(faces: &[Acc; 6], areas: &[f64; 6], threshold: f32) -> Option<Voxel> {
         }
     });
     let weight_sum: f64 = weights.iter().sum();
-    let (mut normal, mut colour) = ([0.0f64; 3], [0.0f64; 3]);
+    let (mut normal, mut colour, mut shade) = ([0.0f64; 3], [0.0f64; 3], 0.0f64);
     for f in 0..6 {
         let acc = &faces[f];
         if acc.hits == 0 {
@@ -473,17 +507,48 @@ fn voxel(faces: &[Acc; 6], areas: &[f64; 6], threshold: f32) -> Option<Voxel> {
             normal[a] += w * aligned[f][a];
             colour[a] += w * f64::from(c[a]);
         }
+        shade += w * acc.shade();
     }
+    // The cell's coverage seen from everywhere: the faces' coverages weighted by their areas.
+    let area_sum: f64 = (0..6)
+        .filter(|&f| faces[f].rays > 0)
+        .map(|f| areas[f])
+        .sum();
+    let coverage = if area_sum > 0.0 {
+        (0..6)
+            .filter(|&f| faces[f].rays > 0)
+            .map(|f| areas[f] * faces[f].coverage())
+            .sum::<f64>()
+            / area_sum
+    } else {
+        1.0
+    };
     let mean = Sample::pack(normal.map(|c| c as f32), colour.map(|c| c as f32));
-    let agree = (0..6).filter(|&f| faces[f].hits > 0).all(|f| {
-        let s = Sample::pack(aligned[f].map(|c| c as f32), faces[f].mean_colour());
-        super::difference(s, mean) <= threshold
+    let mean_foot = Footprint::new(shade, coverage);
+    let t = f64::from(threshold);
+    let agree = (0..6).filter(|&f| faces[f].rays > 0).all(|f| {
+        let acc = &faces[f];
+        let covered = (acc.coverage() - coverage).abs() <= t;
+        covered
+            && (acc.hits == 0 || {
+                let s = Sample::pack(aligned[f].map(|c| c as f32), acc.mean_colour());
+                super::difference(s, mean) <= threshold && (acc.shade() - shade).abs() <= t
+            })
     });
     Some(if agree {
-        Voxel::Single(mean)
+        Voxel::Single(mean, mean_foot)
     } else {
-        Voxel::Six(std::array::from_fn(|f| {
-            faces[f].facing_sample().unwrap_or(mean)
-        }))
+        Voxel::Six(
+            std::array::from_fn(|f| faces[f].facing_sample().unwrap_or(mean)),
+            std::array::from_fn(|f| {
+                let acc = &faces[f];
+                if acc.rays == 0 {
+                    // A face of zero area casts no rays: what the others see stands for it.
+                    mean_foot
+                } else {
+                    Footprint::new(acc.shade(), acc.coverage())
+                }
+            }),
+        )
     })
 }

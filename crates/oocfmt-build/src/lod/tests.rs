@@ -80,7 +80,7 @@ fn a_flat_patch_gets_one_sample_and_is_seen_from_both_sides() {
     let mut mesh = two_walls();
     mesh.triangles.truncate(2);
     let lod = lod_of_root(&mesh, DEFAULT_VOXEL_THRESHOLD);
-    let Voxel::Single(s) = lod.voxel else {
+    let Voxel::Single(s, _) = lod.voxel else {
         panic!("{:?}", lod.voxel)
     };
     // Oriented as the mesh orients it, though half the rays see its back.
@@ -100,7 +100,7 @@ fn a_flat_patch_gets_one_sample_and_is_seen_from_both_sides() {
 #[test]
 fn differently_facing_walls_get_six_samples() {
     let lod = lod_of_root(&two_walls(), DEFAULT_VOXEL_THRESHOLD);
-    let Voxel::Six(s) = lod.voxel else {
+    let Voxel::Six(s, _) = lod.voxel else {
         panic!("{:?}", lod.voxel)
     };
     // Through +x the blue wall's front, through −x its back; through ±z the red floor.
@@ -117,7 +117,7 @@ fn differently_facing_walls_get_six_samples() {
     // With a threshold above every difference the same node is one sample.
     assert!(matches!(
         lod_of_root(&two_walls(), 3.0).voxel,
-        Voxel::Single(_)
+        Voxel::Single(_, _)
     ));
 }
 
@@ -178,8 +178,8 @@ fn hull_with_cargo(far: bool) -> Mesh {
 
 fn assert_green(lod: &LodData, what: &str) {
     match lod.voxel {
-        Voxel::Single(s) => assert_eq!(s.colour(), GREEN, "{what}"),
-        Voxel::Six(s) => assert!(s.iter().all(|f| f.colour() == GREEN), "{what}: {s:?}"),
+        Voxel::Single(s, _) => assert_eq!(s.colour(), GREEN, "{what}"),
+        Voxel::Six(s, _) => assert!(s.iter().all(|f| f.colour() == GREEN), "{what}: {s:?}"),
     }
     for (k, p) in lod.proxy_samples.iter().enumerate() {
         assert!(!p.is_empty(), "{what}: proxy direction {k} sees nothing");
@@ -195,7 +195,7 @@ fn hidden_cargo_does_not_tint_its_hull() {
     let lod = compute(&mesh, &tree, &[root], DEFAULT_VOXEL_THRESHOLD);
     assert_green(&lod[0], "root");
     // Every face sees the hull's outside: the normals point out of the box.
-    let Voxel::Six(faces) = lod[0].voxel else {
+    let Voxel::Six(faces, _) = lod[0].voxel else {
         panic!("a box looks different from each side: {:?}", lod[0].voxel)
     };
     let outward = [
@@ -263,7 +263,7 @@ fn a_sliver_the_rays_miss_still_gets_a_voxel() {
     let tree = KdTree::from_parts(&mesh, nodes, Some(NodeId(0)), mesh.bounds(), Vec::new());
     let Ok(tree) = tree else { panic!("{tree:?}") };
     let lod = compute(&mesh, &tree, &[NodeId(0)], DEFAULT_VOXEL_THRESHOLD);
-    let Voxel::Single(s) = lod[0].voxel else {
+    let Voxel::Single(s, _) = lod[0].voxel else {
         panic!("{:?}", lod[0].voxel)
     };
     assert_eq!(s.colour(), [0.0, 0.0, 1.0]);
@@ -291,7 +291,7 @@ fn lod_data_is_the_same_whatever_the_thread_count() {
     assert!(one == run(2), "one and two threads differ");
     let six = one
         .iter()
-        .filter(|l| matches!(l.voxel, Voxel::Six(_)))
+        .filter(|l| matches!(l.voxel, Voxel::Six(_, _)))
         .count();
     assert!(six > 0 && six < one.len(), "{six} of {}", one.len());
 }
@@ -299,10 +299,10 @@ fn lod_data_is_the_same_whatever_the_thread_count() {
 #[test]
 fn the_recorded_sampling_matches_the_ray_counts() {
     let described = format!(
-        "first-hit rays, Halton 2/3: 1 per {TRIANGLES_PER_FACE_RAY} triangles per face \
-         ({FACE_RAYS_MIN}..{FACE_RAYS_BASE}, {FACE_RAYS_MAX} if uncertain), \
+        "first-hit rays, Owen-scrambled Sobol: 1 per {TRIANGLES_PER_FACE_RAY} triangles per face \
+         ({FACE_RAYS_MIN}..{FACE_RAYS_BASE}, x4 while uncertain up to {FACE_RAYS_MAX}), \
          1 per {TRIANGLES_PER_DIAGONAL_RAY} per diagonal ({DIAGONAL_RAYS_MIN}..{DIAGONAL_RAYS_MAX}, \
-         else blended faces)"
+         else blended faces); shade and coverage per face"
     );
     assert_eq!(LOD_SAMPLING, described);
 }

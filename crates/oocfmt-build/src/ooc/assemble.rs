@@ -104,13 +104,19 @@ fn lookup(map: &[u32], local: u32) -> Result<u32, LayoutError> {
 }
 
 impl Order {
-    /// Rewrites a chunk treelet block's references from chunk-local to final ids.
-    fn patch_treelets(&self, chunk: usize, raw: &mut [u8]) -> Result<(), OocError> {
+    /// Rewrites a chunk treelet block's references from chunk-local to final ids; `kinds` is
+    /// what the file's LOD entries hold.
+    fn patch_treelets(
+        &self,
+        chunk: usize,
+        raw: &mut [u8],
+        kinds: oocfmt::records::LodKinds,
+    ) -> Result<(), OocError> {
         let empty = Vec::new();
         let treelets = self.chunk_treelets.get(chunk).unwrap_or(&empty);
         let triangles = self.chunk_triangles.get(chunk).unwrap_or(&empty);
         let mut nodes = Vec::new();
-        let block = TreeletBlock::parse(raw)?;
+        let block = TreeletBlock::parse_with(raw, kinds)?;
         let area = 16 + 4 * block.treelet_count();
         block.walk(|_, pos, node| {
             if !matches!(node, Node::Basic { .. }) {
@@ -195,7 +201,7 @@ pub fn write(
                         .read_exact_at(&mut raw, b.offset)
                         .map_err(|e| OocError::spill(spill, e))?;
                     if b.kind == BlockKind::Treelet {
-                        order.patch_treelets(i, &mut raw)?;
+                        order.patch_treelets(i, &mut raw, write.lod)?;
                     }
                     Ok(RawBlock {
                         kind: b.kind,

@@ -355,7 +355,7 @@ pub(super) fn count_treelet(plan: &TreePlan, t: usize, counts: &mut ChunkCounts)
                 counts.lod_nodes += 1;
                 match plan.lod_data(n).map(|d| d.voxel) {
                     _ if !plan.kinds.voxel => {}
-                    Some(Voxel::Six(_)) => counts.voxels_six += 1,
+                    Some(Voxel::Six(..)) => counts.voxels_six += 1,
                     _ => counts.voxels_single += 1,
                 }
             }

@@ -6,7 +6,9 @@ use oocfmt::records::Voxel;
 use super::chunk::answer_rays;
 use super::top::{finish_top_lod, record_rays, TopLod};
 use crate::kdtree::{build_cell, KdBuildOptions, KdTree, NodeId};
-use crate::lod::{sample_cell, shade, DEFAULT_VOXEL_THRESHOLD};
+use crate::lod::{
+    sample_cell, shade, DEFAULT_VOXEL_THRESHOLD, DIAGONAL_RAYS_MAX, FACE_RAYS_MAX,
+};
 use crate::raycast::intersect_triangle;
 use oocfmt_meshio::mesh::{Bounds, Mesh};
 
@@ -76,7 +78,7 @@ fn sampling_in_pieces_matches_sampling_the_whole() {
     let mesh = hull_with_cargo();
     let cell = mesh.bounds();
     let mut rays = record_rays(cell, DEFAULT_VOXEL_THRESHOLD);
-    assert_eq!(rays.len(), 6 * 64 + 12 * 16);
+    assert_eq!(rays.len(), 6 * FACE_RAYS_MAX + 12 * DIAGONAL_RAYS_MAX);
     // The reference: every triangle tested against every ray.
     let mut reference = rays.iter();
     let whole = sample_cell(cell, DEFAULT_VOXEL_THRESHOLD, 1.0, &mut |ray, t1, eps| {
@@ -112,7 +114,7 @@ fn sampling_in_pieces_matches_sampling_the_whole() {
     let pieces = finish_top_lod(&lod, DEFAULT_VOXEL_THRESHOLD, 1.0);
     assert_eq!(pieces, whole);
     // And it is the hull's green, not the cargo's yellow, from every side.
-    let Voxel::Six(faces) = pieces.voxel else {
+    let Voxel::Six(faces, _) = pieces.voxel else {
         panic!("{:?}", pieces.voxel)
     };
     for f in faces {

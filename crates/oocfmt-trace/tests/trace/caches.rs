@@ -640,7 +640,7 @@ fn decoded_treelet_blocks_say_what_the_file_says() {
                             (LodKind::Voxel, Shown::Voxel(v)) => {
                                 assert_eq!(l.radius, radius);
                                 assert_eq!(Some(v), entry.voxel, "block {id} node {i}");
-                                seen[1] += usize::from(matches!(v, Voxel::Six(_)));
+                                seen[1] += usize::from(matches!(v, Voxel::Six(_, _)));
                             }
                             (LodKind::Rlod, Shown::Plane(plane)) => {
                                 let r = entry.rlod.unwrap();

@@ -12,3 +12,4 @@ mod packets;
 mod reference;
 mod secondary;
 mod session;
+mod translucent;

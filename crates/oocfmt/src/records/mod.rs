@@ -14,6 +14,6 @@ pub use node::{
 };
 pub use proxy::{ProxyRecord, PROXY_DIRECTIONS, PROXY_LEN};
 pub use rlod::{LodKinds, Rlod, RLOD_LEN};
-pub use sample::{Sample, Voxel};
+pub use sample::{Footprint, Sample, Voxel};
 pub use treelet::{LodEntry, TreeletBlock, TreeletBlockWriter, TreeletSummary};
 pub use triangle::{Triangle, TriangleBlock, TriangleBlockWriter, Vertex};

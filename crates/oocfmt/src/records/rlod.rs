@@ -6,9 +6,12 @@
 //! layout of a treelet block's LOD area, where each LOD node's entry is its voxel (if the file
 //! has voxels) followed by its R-LOD record (if it has R-LODs).
 
-use crate::bytes::{f32_at, u16_at, u32_at, PutLe};
+use crate::bytes::{f32_at, u32_at, PutLe};
 use crate::error::{bad, Code, Result};
-use crate::header::{Header, INCOMPAT_LOD_NO_VOXELS, INCOMPAT_LOD_RLODS};
+use crate::header::{
+    Header, INCOMPAT_LOD_FILTERED, INCOMPAT_LOD_NO_VOXELS, INCOMPAT_LOD_RLODS, VERSION_MINOR,
+    VERSION_MINOR_BASE, VERSION_MINOR_RLODS,
+};
 
 /// Bytes of one R-LOD record in a LOD area.
 pub const RLOD_LEN: usize = 24;
@@ -25,6 +28,9 @@ pub struct LodKinds {
     pub voxel: bool,
     /// Every LOD node's entry holds an R-LOD record (after the voxel, if any).
     pub rlod: bool,
+    /// The records are pre-filtered (`LOD_FILTERED`, spec §5.1): voxels may carry footprints,
+    /// R-LOD records a shade and a coverage.
+    pub filtered: bool,
 }
 
 impl Default for LodKinds {
@@ -39,17 +45,28 @@ impl LodKinds {
     pub const VOXEL: LodKinds = LodKinds {
         voxel: true,
         rlod: false,
+        filtered: false,
     };
     /// R-LODs only (`LOD_RLODS` and `LOD_NO_VOXELS`).
     pub const RLOD: LodKinds = LodKinds {
         voxel: false,
         rlod: true,
+        filtered: false,
     };
     /// A voxel then an R-LOD record per LOD node (`LOD_RLODS` alone).
     pub const BOTH: LodKinds = LodKinds {
         voxel: true,
         rlod: true,
+        filtered: false,
     };
+
+    /// The same kinds, pre-filtered (spec §5.1): what a writer of 1.2 makes by default.
+    pub const fn filtered(self) -> LodKinds {
+        LodKinds {
+            filtered: true,
+            ..self
+        }
+    }
 
     /// The kinds the header's incompatible feature bits announce. `LOD_NO_VOXELS` without
     /// `LOD_RLODS` would leave LOD nodes with nothing; the header decoder refuses it, and here it
@@ -57,15 +74,36 @@ impl LodKinds {
     pub fn of_header(h: &Header) -> LodKinds {
         let rlod = h.incompatible_features & INCOMPAT_LOD_RLODS != 0;
         let voxel = !rlod || h.incompatible_features & INCOMPAT_LOD_NO_VOXELS == 0;
-        LodKinds { voxel, rlod }
+        let filtered = h.incompatible_features & INCOMPAT_LOD_FILTERED != 0;
+        LodKinds {
+            voxel,
+            rlod,
+            filtered,
+        }
     }
 
     /// The incompatible feature bits that announce these kinds (none for voxels alone).
     pub fn incompatible_bits(self) -> u64 {
-        match (self.voxel, self.rlod) {
+        let kinds = match (self.voxel, self.rlod) {
             (_, false) => 0,
             (true, true) => INCOMPAT_LOD_RLODS,
             (false, true) => INCOMPAT_LOD_RLODS | INCOMPAT_LOD_NO_VOXELS,
+        };
+        if self.filtered {
+            kinds | INCOMPAT_LOD_FILTERED
+        } else {
+            kinds
+        }
+    }
+
+    /// The lowest minor version that describes a file of these kinds (spec §11).
+    pub fn minor_version(self) -> u16 {
+        if self.filtered {
+            VERSION_MINOR
+        } else if self.rlod {
+            VERSION_MINOR_RLODS
+        } else {
+            VERSION_MINOR_BASE
         }
     }
 
@@ -94,6 +132,12 @@ pub struct Rlod {
     pub deviation_code: u8,
     /// Code of how far outside the cell the plane still counts; see [`Rlod::expansion`].
     pub expansion_code: u8,
+    /// The share of the plane's part in the cell the triangles cover, value / 255 (spec §6.4);
+    /// 255 in a file without `LOD_FILTERED`.
+    pub coverage: u8,
+    /// The length of the area-weighted mean unit normal, value / 255; 255 without
+    /// `LOD_FILTERED`.
+    pub shade: u8,
 }
 
 impl Rlod {
@@ -142,21 +186,35 @@ impl Rlod {
         self.colour.map(|c| f32::from(c) / 255.0)
     }
 
-    /// Appends the record's 24 bytes to `v`, reserved bytes zero.
-    pub fn encode_into(&self, v: &mut Vec<u8>) {
+    /// The coverage as a share in 0..=1.
+    pub fn coverage_f32(&self) -> f32 {
+        f32::from(self.coverage) / 255.0
+    }
+
+    /// The shade factor as a share in 0..=1.
+    pub fn shade_f32(&self) -> f32 {
+        f32::from(self.shade) / 255.0
+    }
+
+    /// Appends the record's 24 bytes to `v`, reserved bytes zero; coverage and shade only in a
+    /// `filtered` file (where they are fields; elsewhere reserved).
+    pub fn encode_into(&self, v: &mut Vec<u8>, filtered: bool) {
         for c in self.normal {
             v.put_f32(c);
         }
         v.put_f32(self.offset);
         v.extend_from_slice(&self.colour);
-        v.push(0);
+        v.push(if filtered { self.coverage } else { 0 });
         v.push(self.deviation_code);
         v.push(self.expansion_code);
-        v.put_u16(0);
+        v.push(if filtered { self.shade } else { 0 });
+        v.push(0);
     }
 
-    /// Decodes the record at byte `at` of a LOD area, checking every field.
-    pub fn decode(area: &[u8], at: usize) -> Result<Rlod> {
+    /// Decodes the record at byte `at` of a LOD area, checking every field; `filtered` says
+    /// whether the file has `LOD_FILTERED` (coverage and shade are then fields, else reserved
+    /// and decoded as 255).
+    pub fn decode(area: &[u8], at: usize, filtered: bool) -> Result<Rlod> {
         let c = Code::Rlod;
         if at % 4 != 0 || area.len() < at.saturating_add(RLOD_LEN) {
             return bad(
@@ -190,20 +248,27 @@ impl Rlod {
                 ),
             );
         }
-        if word >> 24 != 0 || u16_at(area, at + 22, c)? != 0 {
+        let [r, g, b, coverage] = word.to_le_bytes();
+        let [dev, exp, shade, reserved] = codes.to_le_bytes();
+        if reserved != 0 || (!filtered && (coverage != 0 || shade != 0)) {
             return bad(
                 c,
                 format!("R-LOD record at {at}: reserved bytes are not zero"),
             );
         }
-        let [r, g, b, _] = word.to_le_bytes();
-        let [dev, exp, _, _] = codes.to_le_bytes();
+        let (coverage, shade) = if filtered {
+            (coverage, shade)
+        } else {
+            (255, 255)
+        };
         Ok(Rlod {
             normal,
             offset,
             colour: [r, g, b],
             deviation_code: dev,
             expansion_code: exp,
+            coverage,
+            shade,
         })
     }
 }
@@ -219,22 +284,35 @@ mod tests {
             colour: [10, 200, 255],
             deviation_code: 17,
             expansion_code: 18,
+            coverage: 255,
+            shade: 255,
         }
     }
 
     #[test]
     fn round_trip_at_an_offset() {
         let mut v = vec![0u8; 4];
-        sample().encode_into(&mut v);
+        sample().encode_into(&mut v, false);
         assert_eq!(v.len(), 4 + RLOD_LEN);
-        assert_eq!(Rlod::decode(&v, 4).ok(), Some(sample()));
+        assert_eq!(Rlod::decode(&v, 4, false).ok(), Some(sample()));
+        let filtered = Rlod {
+            coverage: 77,
+            shade: 201,
+            ..sample()
+        };
+        let mut v = Vec::new();
+        filtered.encode_into(&mut v, true);
+        assert_eq!((v[19], v[22]), (77, 201));
+        assert_eq!(Rlod::decode(&v, 0, true).ok(), Some(filtered));
+        // Unfiltered files have no such fields: they are reserved there.
+        assert!(Rlod::decode(&v, 0, false).is_err());
     }
 
     #[test]
     fn bad_bytes_get_typed_errors() {
         let mut v = Vec::new();
-        sample().encode_into(&mut v);
-        let code = |b: &[u8], at: usize| Rlod::decode(b, at).err().map(|e| e.code());
+        sample().encode_into(&mut v, false);
+        let code = |b: &[u8], at: usize| Rlod::decode(b, at, false).err().map(|e| e.code());
         // Truncated, unaligned.
         assert_eq!(code(&v[..RLOD_LEN - 1], 0), Some(Code::Rlod));
         assert_eq!(code(&v, 2), Some(Code::Rlod));
@@ -256,6 +334,13 @@ mod tests {
             r[at] = 1;
             assert_eq!(code(&r, 0), Some(Code::Rlod), "byte {at}");
         }
+        let mut r = v.clone();
+        r[23] = 1;
+        assert_eq!(
+            Rlod::decode(&r, 0, true).err().map(|e| e.code()),
+            Some(Code::Rlod),
+            "byte 23 of a filtered file"
+        );
     }
 
     #[test]
@@ -294,10 +379,17 @@ mod tests {
     #[test]
     fn kinds_and_their_header_bits() {
         for k in [LodKinds::VOXEL, LodKinds::RLOD, LodKinds::BOTH] {
-            let mut h = Header::new(16);
-            h.incompatible_features = k.incompatible_bits();
-            assert_eq!(LodKinds::of_header(&h), k);
+            for k in [k, k.filtered()] {
+                let mut h = Header::new(16);
+                h.incompatible_features = k.incompatible_bits();
+                assert_eq!(LodKinds::of_header(&h), k);
+            }
         }
         assert_eq!(LodKinds::VOXEL.incompatible_bits(), 0);
+        assert_eq!(
+            [LodKinds::VOXEL, LodKinds::BOTH, LodKinds::RLOD.filtered()]
+                .map(LodKinds::minor_version),
+            [0, 1, 2]
+        );
     }
 }

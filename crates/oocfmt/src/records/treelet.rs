@@ -28,6 +28,9 @@ pub struct LodEntry {
     pub voxel: Option<Voxel>,
     /// The node's R-LOD record; `None` for a non-LOD node or a file without R-LODs.
     pub rlod: Option<Rlod>,
+    /// Bytes the voxel takes in the LOD area as stored (0 without one): the entry's length
+    /// follows from it, not from the decoded voxel (spec §5.1).
+    pub voxel_len: usize,
 }
 
 /// What one pass over a treelet block found.
@@ -146,7 +149,7 @@ impl<'a> TreeletBlock<'a> {
         if !self.kinds.voxel {
             return bad(Code::Voxel, "this file's LOD nodes carry no voxels");
         }
-        Voxel::decode(self.voxels, voxel_offset as usize)
+        Voxel::decode(self.voxels, voxel_offset as usize, self.kinds.filtered)
     }
 
     /// The R-LOD record of a LOD node whose LOD entry starts at `voxel_offset`: after the voxel
@@ -156,11 +159,16 @@ impl<'a> TreeletBlock<'a> {
             return bad(Code::Rlod, "this file's LOD nodes carry no R-LODs");
         }
         let skip = if self.kinds.voxel {
-            self.voxel(voxel_offset)?.byte_len()
+            let off = voxel_offset as usize;
+            Voxel::decode_sized(self.voxels, off, self.kinds.filtered)?.1
         } else {
             0
         };
-        Rlod::decode(self.voxels, voxel_offset as usize + skip)
+        Rlod::decode(
+            self.voxels,
+            voxel_offset as usize + skip,
+            self.kinds.filtered,
+        )
     }
 
     /// Byte position of a child, from its parent's position and the stored offset.
@@ -264,16 +272,19 @@ impl<'a> TreeletBlock<'a> {
     fn lod_entry(&self, voxel_offset: u32, sum: &mut TreeletSummary) -> Result<LodEntry> {
         let mut entry = LodEntry::default();
         if self.kinds.voxel {
-            let v = Voxel::decode(self.voxels, voxel_offset as usize)?;
+            let (v, len) =
+                Voxel::decode_sized(self.voxels, voxel_offset as usize, self.kinds.filtered)?;
+            entry.voxel_len = len;
             match v {
-                Voxel::Single(_) => sum.voxels_single += 1,
-                Voxel::Six(_) => sum.voxels_six += 1,
+                Voxel::Single(..) => sum.voxels_single += 1,
+                Voxel::Six(..) => sum.voxels_six += 1,
             }
             entry.voxel = Some(v);
         }
         if self.kinds.rlod {
-            let skip = entry.voxel.map_or(0, |v| v.byte_len());
-            entry.rlod = Some(Rlod::decode(self.voxels, voxel_offset as usize + skip)?);
+            let filtered = self.kinds.filtered;
+            let at = voxel_offset as usize + entry.voxel_len;
+            entry.rlod = Some(Rlod::decode(self.voxels, at, filtered)?);
             sum.rlods += 1;
         }
         Ok(entry)
@@ -381,18 +392,19 @@ impl TreeletBlockWriter {
         Ok(())
     }
 
-    /// Appends a voxel; returns the offset a LOD node stores for it.
-    pub fn push_voxel(&mut self, voxel: &Voxel) -> u32 {
+    /// Appends a voxel, with its footprints in a `filtered` file (spec §5.1); returns the
+    /// offset a LOD node stores for it.
+    pub fn push_voxel(&mut self, voxel: &Voxel, filtered: bool) -> u32 {
         let off = self.voxels.len() as u32;
-        voxel.encode_into(&mut self.voxels);
+        voxel.encode_into(&mut self.voxels, filtered);
         off
     }
 
     /// Appends an R-LOD record; returns its offset in the LOD area. In a file with both kinds
     /// it goes right after its node's voxel, and the node stores the voxel's offset.
-    pub fn push_rlod(&mut self, rlod: &Rlod) -> u32 {
+    pub fn push_rlod(&mut self, rlod: &Rlod, filtered: bool) -> u32 {
         let off = self.voxels.len() as u32;
-        rlod.encode_into(&mut self.voxels);
+        rlod.encode_into(&mut self.voxels, filtered);
         off
     }
 
@@ -441,7 +453,7 @@ impl TreeletBlockWriter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::records::sample::Sample;
+    use crate::records::sample::{Footprint, Sample};
 
     fn two_leaf_treelet() -> Vec<u8> {
         let mut w = TreeletBlockWriter::new();
@@ -463,7 +475,10 @@ mod tests {
             block: 1,
         });
         w.begin_treelet();
-        let vox = w.push_voxel(&Voxel::Single(Sample::pack([0.0, 0.0, 1.0], [1.0; 3])));
+        let vox = w.push_voxel(
+            &Voxel::single(Sample::pack([0.0, 0.0, 1.0], [1.0; 3])),
+            false,
+        );
         w.push_node(&Node::Lod {
             axis: 1,
             split: 0.0,
@@ -505,16 +520,35 @@ mod tests {
             colour: [1, 2, 3],
             deviation_code: 4,
             expansion_code: 5,
+            coverage: 255,
+            shade: 255,
         };
-        for kinds in [LodKinds::RLOD, LodKinds::BOTH] {
+        let kinds_all = [LodKinds::RLOD, LodKinds::BOTH];
+        for kinds in kinds_all
+            .into_iter()
+            .chain(kinds_all.map(LodKinds::filtered))
+        {
+            let f = kinds.filtered;
+            // Filtered: a voxel with a footprint word (8 bytes) the R-LOD must be found after.
+            let (rlod, foot) = if f {
+                let r = Rlod {
+                    coverage: 100,
+                    shade: 200,
+                    ..rlod
+                };
+                (r, Footprint::new(0.5, 0.25))
+            } else {
+                (rlod, Footprint::FULL)
+            };
             let mut w = TreeletBlockWriter::new();
             w.begin_treelet();
             let at = if kinds.voxel {
-                let at = w.push_voxel(&Voxel::Single(Sample::pack([0.0, 0.0, 1.0], [1.0; 3])));
-                w.push_rlod(&rlod);
+                let s = Sample::pack([0.0, 0.0, 1.0], [1.0; 3]);
+                let at = w.push_voxel(&Voxel::Single(s, foot), f);
+                w.push_rlod(&rlod, f);
                 at
             } else {
-                w.push_rlod(&rlod)
+                w.push_rlod(&rlod, f)
             };
             w.push_node(&Node::Lod {
                 axis: 1,
@@ -531,6 +565,11 @@ mod tests {
             let b = TreeletBlock::parse_with(&raw, kinds).map_err(|e| e.to_string());
             let got = b.as_ref().map(|b| b.rlod(at).ok());
             assert_eq!(got, Ok(Some(rlod)), "{kinds:?}");
+            if kinds.voxel {
+                let v = b.as_ref().map(|b| b.voxel(at).ok());
+                let s = Sample::pack([0.0, 0.0, 1.0], [1.0; 3]);
+                assert_eq!(v, Ok(Some(Voxel::Single(s, foot))), "{kinds:?}");
+            }
             let sum = b.and_then(|b| b.walk(|_, _, _| Ok(())).map_err(|e| e.to_string()));
             assert_eq!(
                 sum.map(|s| (s.rlods, s.voxels_single)),

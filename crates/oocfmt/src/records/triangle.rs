@@ -10,6 +10,9 @@ pub const ATTR_NORMALS: u16 = 1 << 0;
 pub const ATTR_COLOURS: u16 = 1 << 1;
 /// Attribute bit: triangles carry a material index.
 pub const ATTR_MATERIALS: u16 = 1 << 2;
+/// What a triangle with neither vertex colours nor a material shows, linear RGB (spec §8): the
+/// renderer's colour for it and the writer's in the LOD records that stand for it.
+pub const DEFAULT_ALBEDO: [f32; 3] = [0.78, 0.76, 0.72];
 const KNOWN_ATTRS: u16 = ATTR_NORMALS | ATTR_COLOURS | ATTR_MATERIALS;
 const HEAD_LEN: usize = 16;
 /// Largest list, triangle and vertex count of one block (16-bit indices).

@@ -291,8 +291,8 @@ impl Walk<'_> {
     /// without voxels).
     fn count_voxel(&mut self, block: &TreeletBlock<'_>, voxel_offset: u32) {
         match block.voxel(voxel_offset) {
-            Ok(Voxel::Single(_)) => self.counts.voxels_single += 1,
-            Ok(Voxel::Six(_)) => self.counts.voxels_six += 1,
+            Ok(Voxel::Single(..)) => self.counts.voxels_single += 1,
+            Ok(Voxel::Six(..)) => self.counts.voxels_six += 1,
             Err(_) => {}
         }
     }
@@ -515,8 +515,7 @@ fn lod_area(v: &mut Verifier<'_>, id: u32, block: &TreeletBlock<'_>) {
                     "LOD node at {pos}: its LOD entry is at {at}, the previous one ends at {next}"
                 ));
             }
-            let len = entry.voxel.map_or(0, |vx| vx.byte_len())
-                + entry.rlod.map_or(0, |_| crate::records::RLOD_LEN);
+            let len = entry.voxel_len + entry.rlod.map_or(0, |_| crate::records::RLOD_LEN);
             next = at.saturating_add(len);
         }
         Ok(())

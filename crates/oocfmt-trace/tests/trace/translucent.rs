@@ -1,0 +1,134 @@
+//! Semi-transparent LOD entries (spec §5.1), against known answers: a comb of strips covering
+//! half of a square, seen from above through its LOD voxels, shows half the strips' shade and
+//! half the background, as the supersampled full-detail picture does; written unfiltered, the
+//! voxels are opaque and show the strips' shade alone.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::sync::Arc;
+
+use oocfmt::records::LodKinds;
+use oocfmt::WriteOptions;
+use oocfmt_build::convert::{convert, ConvertOptions};
+use oocfmt_build::progress::NoProgress;
+use oocfmt_trace::shade::DEFAULT_ALBEDO;
+use oocfmt_trace::{render, BlockingCache, Camera, RenderOptions, Scene};
+
+const SIZE: u32 = 64;
+const BACKGROUND: [f32; 3] = [0.2, 0.4, 0.6];
+
+/// 64 strips along y, each half as wide as their pitch, in the plane z = 0 over the unit
+/// square: one strip per pixel column of the camera below, 8 quads long each.
+fn comb_obj(path: &Path) {
+    let (strips, rows) = (64u32, 8u32);
+    let mut obj = String::new();
+    let w = 1.0 / f64::from(strips);
+    for s in 0..strips {
+        let x0 = f64::from(s) * w;
+        for r in 0..rows {
+            let (y0, y1) = (f64::from(r) / 8.0, f64::from(r + 1) / 8.0);
+            for (x, y) in [(x0, y0), (x0 + w / 2.0, y0), (x0 + w / 2.0, y1), (x0, y1)] {
+                writeln!(obj, "v {x} {y} 0").unwrap();
+            }
+            writeln!(obj, "f -4 -3 -2\nf -4 -2 -1").unwrap();
+        }
+    }
+    std::fs::write(path, obj).unwrap();
+}
+
+fn convert_comb(dir: &Path, lod: LodKinds) -> std::path::PathBuf {
+    let obj = dir.join("comb.obj");
+    comb_obj(&obj);
+    let out = dir.join(format!("comb-{}.oocf", lod.filtered));
+    let opts = ConvertOptions {
+        mem_limit: 1 << 30,
+        ..ConvertOptions::default()
+    };
+    let mut opts = opts;
+    opts.layout.write = WriteOptions {
+        lod,
+        ..opts.layout.write
+    };
+    convert(&[obj], &out, &opts, &mut NoProgress).unwrap();
+    out
+}
+
+/// Straight down onto the square from 2 units above its centre, the square filling the image
+/// (the strips' pitch is one pixel).
+fn camera() -> Camera {
+    Camera {
+        eye: [0.5, 0.5, 2.0],
+        look_at: [0.5, 0.5, 0.0],
+        up: [0.0, 1.0, 0.0],
+        fov_y: 2.0 * (0.25f64).atan().to_degrees(),
+        width: SIZE,
+        height: SIZE,
+    }
+}
+
+fn linear(c: u8) -> f32 {
+    let c = f32::from(c) / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The mean linear colour of the middle half of the image, and how many primary rays ended on
+/// voxels.
+fn centre_colour(path: &Path, poe: f32, spp: u32) -> ([f32; 3], u64) {
+    let scene = Arc::new(Scene::open(path).unwrap());
+    let cache = BlockingCache::new(Arc::clone(&scene), usize::MAX);
+    let opts = RenderOptions {
+        poe,
+        spp,
+        background: BACKGROUND,
+        ..RenderOptions::default()
+    };
+    let (image, stats) = render(&scene, &cache, &camera(), &opts).unwrap();
+    let (lo, hi) = (SIZE / 4, 3 * SIZE / 4);
+    let mut sum = [0f32; 3];
+    let mut n = 0f32;
+    for y in lo..hi {
+        for x in lo..hi {
+            let at = 3 * (y * SIZE + x) as usize;
+            for (s, c) in sum.iter_mut().zip(&image.rgb[at..at + 3]) {
+                *s += linear(*c);
+            }
+            n += 1.0;
+        }
+    }
+    (sum.map(|s| s / n), stats.primary.voxel)
+}
+
+fn assert_near(got: [f32; 3], want: [f32; 3], tolerance: f32, what: &str) {
+    for (g, w) in got.iter().zip(want) {
+        assert!(
+            (g - w).abs() <= tolerance,
+            "{what}: {got:?}, expected {want:?}"
+        );
+    }
+}
+
+#[test]
+fn a_half_covered_voxel_shows_half_of_what_lies_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let half: [f32; 3] = std::array::from_fn(|k| 0.5 * DEFAULT_ALBEDO[k] + 0.5 * BACKGROUND[k]);
+    let filtered = convert_comb(dir.path(), LodKinds::VOXEL.filtered());
+    // The true picture: full detail, 4 × 4 samples per pixel, two of four columns on a strip.
+    let (truth, voxels) = centre_colour(&filtered, 0.0, 16);
+    assert_eq!(voxels, 0);
+    assert_near(truth, half, 0.02, "full detail, 16 spp");
+    // Far coarser than a strip: every ray ends on a voxel over many strips.
+    let (lod, voxels) = centre_colour(&filtered, 48.0, 1);
+    assert_eq!(voxels, u64::from(SIZE * SIZE));
+    assert_near(lod, half, 0.04, "filtered voxels");
+    // Opaque voxels paint the strips' shade over the whole square.
+    let opaque = convert_comb(dir.path(), LodKinds::VOXEL);
+    let (lod, voxels) = centre_colour(&opaque, 48.0, 1);
+    assert_eq!(voxels, u64::from(SIZE * SIZE));
+    assert_near(lod, DEFAULT_ALBEDO, 0.04, "unfiltered voxels");
+}
+
