@@ -23,8 +23,8 @@ fn beyond(tracer: &Tracer<'_>, ray: &Ray, hit: &Hit) -> f32 {
 }
 
 /// The colour a primary `ray` shows, its first hit `first` given: `shade(hit)` (the linear
-/// RGB of one surface) composited front to back over the surfaces behind every translucent
-/// one, and over `background` where the ray leaves the scene.
+/// RGB of one surface) composited front to back over what lies behind every translucent one
+/// (each lets 1 − α through), and over `background` where the ray leaves the scene.
 pub fn composite(
     tracer: &Tracer<'_>,
     ray: &Ray,
@@ -37,15 +37,17 @@ pub fn composite(
     let mut through = 1f32;
     let mut hit = first.clone();
     for layer in 1..=MAX_LAYERS {
-        let c = shade(&hit, memo);
         // The last layer allowed stands for everything behind it.
         let alpha = if layer == MAX_LAYERS {
             1.0
         } else {
             hit.coverage.clamp(0.0, 1.0)
         };
-        for (o, c) in colour.iter_mut().zip(c) {
-            *o += through * alpha * c;
+        if alpha > 0.0 {
+            let c = shade(&hit, memo);
+            for (o, c) in colour.iter_mut().zip(c) {
+                *o += through * alpha * c;
+            }
         }
         through *= 1.0 - alpha;
         if through < MIN_TRANSMITTANCE {

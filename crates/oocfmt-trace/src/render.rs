@@ -157,7 +157,7 @@ impl Endings {
     fn record(&mut self, hit: Option<&Hit>) {
         match hit.map(|h| &h.surface) {
             Some(Surface::Triangle { .. }) => self.triangle += 1,
-            Some(Surface::Voxel(_)) => self.voxel += 1,
+            Some(Surface::Voxel { .. }) => self.voxel += 1,
             Some(Surface::Plane { .. }) => self.rlod += 1,
             Some(Surface::Proxy(_)) => self.proxy += 1,
             None => self.miss += 1,

@@ -21,8 +21,9 @@ pub const AMBIENT: f32 = 0.12;
 /// The weight of the ambient term with ambient occlusion.
 pub const AO_AMBIENT: f32 = 0.35;
 
-/// The linear RGB colour of a hit under the headlight: the cosine scaled by the hit's shade σ
-/// (spec §5.1), so a pre-filtered LOD sample shows its footprint's mean shade.
+/// The linear RGB colour of a hit under the headlight: the cosine of a rough surface of the
+/// hit's shade σ ([`rough_cosine`], spec §5.1), so a pre-filtered LOD sample shows its
+/// footprint's mean shade.
 pub fn shade(hit: &Hit, ray: &Ray, materials: &[Material]) -> [f32; 3] {
     let (albedo, normal) = attributes(hit, materials);
     let len = dot(normal, normal).sqrt();
@@ -30,7 +31,8 @@ pub fn shade(hit: &Hit, ray: &Ray, materials: &[Material]) -> [f32; 3] {
         (dot(normal, ray.dir) / len).abs().min(1.0)
     } else {
         1.0
-    } * hit.shade.clamp(0.0, 1.0);
+    };
+    let cos = rough_cosine(cos, hit.shade);
     let light = AMBIENT + (1.0 - AMBIENT) * cos;
     albedo.map(|c| c.clamp(0.0, 1.0) * light)
 }
@@ -71,7 +73,8 @@ fn attributes(hit: &Hit, materials: &[Material]) -> ([f32; 3], [f32; 3]) {
             };
             (albedo, n)
         }
-        Surface::Voxel(s) | Surface::Proxy(s) => (s.colour(), s.normal()),
+        Surface::Proxy(s) => (s.colour(), s.normal()),
+        Surface::Voxel { normal, colour } => (*colour, *normal),
         Surface::Plane { normal, colour } => (*colour, *normal),
     }
 }
@@ -185,7 +188,7 @@ impl<'a> Lighting<'a> {
                 .get(*triangle as usize)
                 .and_then(triangle_normal)
                 .map(|n| n.map(|c| c as f32)),
-            Surface::Voxel(_) | Surface::Proxy(_) | Surface::Plane { .. } => unit(normal),
+            Surface::Voxel { .. } | Surface::Proxy(_) | Surface::Plane { .. } => unit(normal),
         };
         let g = facing(geometric.unwrap_or(back), ray.dir);
         (g, unit(normal).map_or(g, |n| facing(n, ray.dir)))
@@ -202,14 +205,14 @@ impl<'a> Lighting<'a> {
     ) -> f32 {
         let ShadingPoint { from, g, n } = at;
         let (g, n) = (*g, *n);
-        let sigma = hit.shade.clamp(0.0, 1.0);
+        let sigma = hit.shade;
         let Some(s) = &self.shadows else {
-            return sigma * dot(n, ray.dir.map(|c| -c)).clamp(0.0, 1.0);
+            return rough_cosine(dot(n, ray.dir.map(|c| -c)).clamp(0.0, 1.0), sigma);
         };
         match unit_towards(from.point(), s.light()) {
             // The light must be on the viewer's side of the surface.
             Some((l, _)) if dot(g, l) > 0.0 => {
-                let cos = sigma * dot(n, l).min(1.0);
+                let cos = rough_cosine(dot(n, l).min(1.0), sigma);
                 if cos > 0.0 {
                     counts.shadow += 1;
                     return cos * s.visible(from, hit.t, memo);
@@ -218,6 +221,39 @@ impl<'a> Lighting<'a> {
             }
             _ => 0.0,
         }
+    }
+}
+
+/// The mean Lambert term of a rough surface of shade σ (spec §5.1) lit and seen from the same
+/// direction, at cosine `cos` to its mean normal: the V-groove model, whose facets tilt by
+/// β = acos σ either way. Seen along the mean normal it is σ, the mean cosine the builder
+/// measured; obliquely the facets turned to the viewer fill more of the view, and both halves
+/// of the groove show while θ + β ≤ 90° (beyond, only the near one). σ = 1 is a flat surface:
+/// `cos` itself.
+pub fn rough_cosine(cos: f32, sigma: f32) -> f32 {
+    let cos = if cos.is_nan() {
+        1.0
+    } else {
+        cos.clamp(0.0, 1.0)
+    };
+    let sigma = if sigma.is_nan() {
+        1.0
+    } else {
+        sigma.clamp(0.0, 1.0)
+    };
+    if sigma >= 1.0 {
+        return cos;
+    }
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    let sin_b = (1.0 - sigma * sigma).max(0.0).sqrt();
+    // cos(θ + β) ≥ 0: both facets are in view.
+    if cos * sigma - sin * sin_b >= 0.0 && cos > 0.0 {
+        let cos_2t = 2.0 * cos * cos - 1.0;
+        let cos_2b = 2.0 * sigma * sigma - 1.0;
+        ((1.0 + cos_2t * cos_2b) / (2.0 * cos * sigma)).clamp(0.0, 1.0)
+    } else {
+        // cos(θ − β): the facet turned towards the viewer.
+        (cos * sigma + sin * sin_b).clamp(0.0, 1.0)
     }
 }
 

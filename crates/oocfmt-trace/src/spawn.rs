@@ -70,7 +70,8 @@ impl Origin {
                 Some(v) => return Origin::Triangle { v: *v, bary: *bary },
                 None => back,
             },
-            Surface::Voxel(s) | Surface::Proxy(s) => s.normal(),
+            Surface::Proxy(s) => s.normal(),
+            Surface::Voxel { normal, .. } => *normal,
             Surface::Plane { normal, .. } => *normal,
         };
         let len = (0..3).map(|k| normal[k] * normal[k]).sum::<f32>().sqrt();

@@ -51,9 +51,14 @@ pub enum Surface {
         /// The hit's barycentric weights of the triangle's three corners, summing to 1.
         bary: [f32; 3],
     },
-    /// A LOD node's voxel: the sample of the cell face the ray entered through (the only one
-    /// for a single-sample voxel).
-    Voxel(Sample),
+    /// A LOD node's voxel as the ray sees it: its only sample, or the blend of the three faces
+    /// the ray's direction looks through ([`voxel_look`]).
+    Voxel {
+        /// Unit normal.
+        normal: [f32; 3],
+        /// Linear RGB in 0..=1.
+        colour: [f32; 3],
+    },
     /// A LOD node's proxy, standing in for a subtree whose block is not available: its sample
     /// for the direction nearest the ray's.
     Proxy(Sample),
@@ -117,24 +122,23 @@ impl LastVoxel<'_> {
     }
 }
 
-/// What a LOD node showing `shown` gives a ray crossing its cell in [t0, t1], entering through
-/// `axis`, and where; None when a plane is missed.
+/// What a LOD node showing `shown` gives a ray crossing its cell in [t0, t1], and where; None
+/// when a plane is missed. (`_axis`, the face the ray entered through, is no longer needed.)
 pub(crate) fn shown(
     shown: &Shown,
     ray: &Ray,
     t0: f32,
     t1: f32,
-    axis: u8,
+    _axis: u8,
     radius: f32,
 ) -> Option<(f32, Best<'static>)> {
     match shown {
         Shown::Voxel(v) => {
-            let (sample, foot) = voxel_sample(v, axis, ray);
+            let look = voxel_look(v, ray);
             Some((
                 t0,
                 Best::Voxel {
-                    sample,
-                    foot,
+                    look,
                     radius,
                     exit: t1,
                 },
@@ -236,10 +240,9 @@ pub(crate) enum Best<'m> {
         triangle: u32,
         bary: [f32; 3],
     },
-    /// A voxel's sample and footprint, the radius of its cell and where the ray leaves it.
+    /// What a voxel shows the ray, the radius of its cell and where the ray leaves it.
     Voxel {
-        sample: Sample,
-        foot: Footprint,
+        look: VoxelLook,
         radius: f32,
         exit: f32,
     },
@@ -651,13 +654,13 @@ impl Best<'_> {
                 0.0,
             ),
             Best::Voxel {
-                sample,
-                foot,
+                look,
                 radius,
                 exit: e,
             } => {
-                (shade, coverage, exit) = (foot.shade_f32(), foot.coverage_f32(), e.max(t));
-                (Surface::Voxel(sample), radius)
+                (shade, coverage, exit) = (look.shade, look.coverage, e.max(t));
+                let (normal, colour) = (look.normal, look.colour);
+                (Surface::Voxel { normal, colour }, radius)
             }
             Best::Proxy(s, r) => (Surface::Proxy(s), r),
             Best::Plane {
@@ -735,19 +738,70 @@ fn split_sides(
     }
 }
 
-/// The sample and footprint of the face a ray entered the voxel's cell through (−x, +x, −y,
-/// +y, −z, +z).
-pub(crate) fn voxel_sample(v: &Voxel, axis: u8, ray: &Ray) -> (Sample, Footprint) {
-    match v {
-        Voxel::Single(s, f) => (*s, *f),
-        Voxel::Six(..) => {
-            let a = if axis < 3 {
-                usize::from(axis)
-            } else {
-                major_axis(ray.dir)
-            };
-            v.face(2 * a + usize::from(ray.dir[a] < 0.0))
+/// What a voxel shows a ray: a unit normal, a colour, the shade σ and the coverage α (spec
+/// §5.1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct VoxelLook {
+    pub normal: [f32; 3],
+    pub colour: [f32; 3],
+    pub shade: f32,
+    pub coverage: f32,
+}
+
+/// What voxel `v` shows a ray along `ray.dir` (spec §6.3): a 1-sample voxel its sample; a
+/// 6-sample voxel the blend of the three faces the direction looks through, face `a` weighted
+/// by |dₐ| (its share of a cube's silhouette) times its coverage, so the look turns smoothly
+/// with the view instead of jumping where the entry face changes. Each face's normal faces
+/// its own rays; they are turned to face this one before they are summed.
+pub(crate) fn voxel_look(v: &Voxel, ray: &Ray) -> VoxelLook {
+    let one = |s: Sample, f: Footprint| VoxelLook {
+        normal: s.normal(),
+        colour: s.colour(),
+        shade: f.shade_f32(),
+        coverage: f.coverage_f32(),
+    };
+    let Voxel::Six(..) = v else {
+        let (s, f) = v.face(0);
+        return one(s, f);
+    };
+    let d = ray.dir;
+    let (mut normal, mut colour, mut shade) = ([0f32; 3], [0f32; 3], 0f32);
+    let (mut seen, mut all) = (0f32, 0f32);
+    for (a, &da) in d.iter().enumerate() {
+        let (s, f) = v.face(2 * a + usize::from(da < 0.0));
+        let n = s.normal();
+        let w = da.abs() * f.coverage_f32();
+        let turn = if n[0] * d[0] + n[1] * d[1] + n[2] * d[2] > 0.0 {
+            -w
+        } else {
+            w
+        };
+        for ((o, n), (c, x)) in normal
+            .iter_mut()
+            .zip(n)
+            .zip(colour.iter_mut().zip(s.colour()))
+        {
+            *o += turn * n;
+            *c += w * x;
         }
+        shade += w * f.shade_f32();
+        seen += w;
+        all += da.abs();
+    }
+    let len = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
+    if !(seen > 0.0 && len > 0.0 && len.is_finite() && all > 0.0) {
+        // Nothing seen from this side (or opposite faces cancel): transparent.
+        let (s, f) = v.face(2 * major_axis(d) + usize::from(d[major_axis(d)] < 0.0));
+        return VoxelLook {
+            coverage: 0.0,
+            ..one(s, f)
+        };
+    }
+    VoxelLook {
+        normal: normal.map(|x| x / len),
+        colour: colour.map(|x| x / seen),
+        shade: (shade / seen).min(1.0),
+        coverage: (seen / all).min(1.0),
     }
 }
 

@@ -128,3 +128,37 @@ fn a_comb_covering_half_its_cell_gets_coverage_one_half() {
         assert!((c - 0.5).abs() < 0.07, "face {face}: coverage {c}");
     }
 }
+
+fn unit_cell() -> Bounds {
+    Bounds {
+        min: [0.0, 0.0, -0.5],
+        max: [1.0, 1.0, 0.5],
+    }
+}
+
+fn all_triangles(mesh: &Mesh) -> Vec<u32> {
+    (0..mesh.triangles.len() as u32).collect()
+}
+
+#[test]
+fn an_r_lod_over_a_comb_covers_half_its_plane() {
+    let mesh = comb(16, 4);
+    let fit = rlod::fit(&mesh, &all_triangles(&mesh), unit_cell());
+    // The plane z = 0 meets the cell in the unit square; the strips cover half of it (the
+    // speck at the corner adds 5e-9).
+    assert!((fit.section - 1.0).abs() < 1e-9, "{}", fit.section);
+    assert!((fit.coverage() - 0.5).abs() < 1e-6, "{}", fit.coverage());
+    assert!((fit.shade() - 1.0).abs() < 1e-9, "{}", fit.shade());
+    let r = fit.record(1.0);
+    assert_eq!((r.coverage, r.shade), (128, 255));
+}
+
+#[test]
+fn an_r_lod_over_a_rough_surface_keeps_its_mean_shade() {
+    let (a, k) = (0.05, 2.0);
+    let mesh = height_field(a, k, 96);
+    let fit = rlod::fit(&mesh, &all_triangles(&mesh), unit_cell());
+    let want = mean_cosine(a, k);
+    assert!((fit.shade() - want).abs() < 2e-3, "{} against {want}", fit.shade());
+    assert!((fit.coverage() - 1.0).abs() < 1e-6, "{}", fit.coverage());
+}

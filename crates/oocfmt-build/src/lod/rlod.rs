@@ -37,10 +37,8 @@ pub struct PlaneFit {
     /// Σ over the clipped polygons measured so far ([`Deviation`]) of their area projected on
     /// the plane, |A · n|.
     pub projected: f64,
-    /// Σ of their area vectors, each turned to agree with the normal.
-    pub turned: [f64; 3],
-    /// Σ of their areas |A|.
-    pub measured_area: f64,
+    /// Σ of their projected areas times their cosine to the normal, (A · n)² / |A|.
+    pub cosine_weighted: f64,
 }
 
 /// Sums over clipped polygons, relative to the cell's centre.
@@ -238,8 +236,7 @@ impl PlaneMoments {
             area: m.area,
             section: section_area(&self.frame, normal, point),
             projected: 0.0,
-            turned: [0.0; 3],
-            measured_area: 0.0,
+            cosine_weighted: 0.0,
         };
         (plane, point)
     }
@@ -306,12 +303,10 @@ impl Deviation {
                 .max((dot(self.stored_normal, *v) + self.shift).abs());
         }
         let area = area_vector(&self.scratch.out);
-        let along = dot(area, p.normal);
+        let (along, len) = (dot(area, p.normal), dot(area, area).sqrt());
         p.projected += along.abs();
-        p.measured_area += dot(area, area).sqrt();
-        let sign = if along < 0.0 { -1.0 } else { 1.0 };
-        for (t, a) in p.turned.iter_mut().zip(area) {
-            *t += sign * a;
+        if len > 0.0 {
+            p.cosine_weighted += along * along / len;
         }
     }
 
@@ -328,10 +323,7 @@ impl PlaneFit {
         self.deviation = self.deviation.max(piece.deviation);
         self.stored_deviation = self.stored_deviation.max(piece.stored_deviation);
         self.projected += piece.projected;
-        self.measured_area += piece.measured_area;
-        for (t, p) in self.turned.iter_mut().zip(piece.turned) {
-            *t += p;
-        }
+        self.cosine_weighted += piece.cosine_weighted;
     }
 
     /// The share of the plane's part in the cell the triangles cover, seen along the normal,
@@ -344,11 +336,12 @@ impl PlaneFit {
         }
     }
 
-    /// The length of the area-weighted mean unit normal of the triangles, each turned to agree
-    /// with the plane's normal (1 without area).
+    /// The mean, over the plane's covered area, of the cosine between the triangles' normals
+    /// and the plane's: the mean shade of the surface seen along the normal under a headlight
+    /// (1 without area).
     pub fn shade(&self) -> f64 {
-        if self.measured_area > 0.0 {
-            (dot(self.turned, self.turned).sqrt() / self.measured_area).min(1.0)
+        if self.projected > 0.0 {
+            (self.cosine_weighted / self.projected).min(1.0)
         } else {
             1.0
         }

@@ -76,7 +76,10 @@ fn bits(h: &Option<Hit>) -> Option<(u32, u8, Vec<u32>, u32)> {
             w.extend(f(data.positions[*triangle as usize].as_flattened()));
             (0, w)
         }
-        Surface::Voxel(s) => (1, vec![s.0]),
+        Surface::Voxel { normal, colour } => (
+            1,
+            normal.iter().chain(colour).map(|x| x.to_bits()).collect(),
+        ),
         Surface::Proxy(s) => (2, vec![s.0]),
         Surface::Plane { normal, colour } => (3, [f(normal), f(colour)].concat()),
     };

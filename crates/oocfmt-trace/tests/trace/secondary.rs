@@ -311,7 +311,8 @@ fn facing_normal(hit: &oocfmt_trace::traverse::Hit, ray: &Ray) -> [f32; 3] {
                 .unwrap()
                 .map(|c| c as f32)
         }
-        Surface::Voxel(s) | Surface::Proxy(s) => s.normal(),
+        Surface::Proxy(s) => s.normal(),
+        Surface::Voxel { normal, .. } => *normal,
         Surface::Plane { normal, .. } => *normal,
     };
     let d: f32 = (0..3).map(|k| n[k] * ray.dir[k]).sum();
