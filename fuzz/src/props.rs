@@ -15,7 +15,7 @@ use oocfmt::checksum::{crc32c, Crc32c};
 use oocfmt::codec::decode_into;
 use oocfmt::directory::{self, BlockEntry};
 use oocfmt::records::triangle::oct_decode;
-use oocfmt::records::{Node, TreeletBlock, TriangleBlock};
+use oocfmt::records::{LodKinds, Node, TreeletBlock, TriangleBlock};
 use oocfmt::summary::survey_block;
 use oocfmt::verify::{verify, Depth, VerifyOptions};
 use oocfmt::{header, trailer, BlockKind, Checksums, Codec, CodecId, ReadOptions, Reader};
@@ -171,7 +171,9 @@ pub fn block_decode(data: &[u8]) {
         level: 0,
         item_count: item_count.max(1),
     };
-    let _ = survey_block(&entry, &raw, attrs, oocfmt::records::LodKinds::VOXEL);
+    for kinds in LOD_KINDS {
+        let _ = survey_block(&entry, &raw, attrs, kinds);
+    }
     match kind {
         BlockKind::Treelet => treelet_decode(&raw),
         BlockKind::Triangle => triangle_decode(&raw),
@@ -181,36 +183,76 @@ pub fn block_decode(data: &[u8]) {
     }
 }
 
-/// `treelet_decode`: parse a treelet block, walk it, and decode every node and voxel the walk
-/// reaches through the accessors as well.
+/// The LOD kinds a treelet block can be read under: a block does not say which its file has.
+const LOD_KINDS: [LodKinds; 6] = [
+    LodKinds::VOXEL,
+    LodKinds::BOTH,
+    LodKinds::RLOD,
+    LodKinds::VOXEL.filtered(),
+    LodKinds::BOTH.filtered(),
+    LodKinds::RLOD.filtered(),
+];
+
+/// `treelet_decode`: parse a treelet block under every LOD kind, walk it, and decode every node,
+/// voxel and R-LOD record the walk reaches through the accessors as well.
 pub fn treelet_decode(data: &[u8]) {
-    let Ok(block) = TreeletBlock::parse(data) else {
+    for kinds in LOD_KINDS {
+        treelet_decode_as(data, kinds);
+    }
+}
+
+fn treelet_decode_as(data: &[u8], kinds: LodKinds) {
+    let Ok(block) = TreeletBlock::parse_with(data, kinds) else {
         return;
     };
     let mut seen = Vec::new();
-    let walked = block.walk(|t, pos, n| {
-        seen.push((t, pos, *n));
+    let walked = block.walk_lods(|t, pos, n, entry| {
+        seen.push((t, pos, *n, *entry));
         n.check()
     });
-    for &(_, pos, node) in &seen {
+    for &(_, pos, node, entry) in &seen {
         assert_eq!(
             block.node(pos).ok(),
             Some(node),
             "node at {pos} decodes differently on its own"
         );
-        if let Node::Lod { voxel_offset, .. } = node {
-            if let Ok(v) = block.voxel(voxel_offset) {
-                for face in 0..6 {
-                    let s = v.face(face);
-                    if s.check().is_ok() {
-                        let n = s.normal();
-                        assert!(
-                            n.iter().all(|c| c.is_finite()),
-                            "normal of a checked sample is not finite"
-                        );
-                        let _ = s.colour();
-                    }
+        let Node::Lod { voxel_offset, .. } = node else {
+            continue;
+        };
+        if let Ok(v) = block.voxel(voxel_offset) {
+            if entry.voxel.is_some() {
+                assert_eq!(entry.voxel, Some(v), "the walk and the accessor disagree");
+            }
+            for face in 0..6 {
+                let (s, f) = v.face(face);
+                if s.check().is_ok() {
+                    let n = s.normal();
+                    assert!(
+                        n.iter().all(|c| c.is_finite()),
+                        "normal of a checked sample is not finite"
+                    );
+                    let _ = s.colour();
                 }
+                let (shade, coverage) = (f.shade_f32(), f.coverage_f32());
+                assert!(
+                    (0.0..=1.0).contains(&shade) && (0.0..=1.0).contains(&coverage),
+                    "footprint out of range"
+                );
+                if !kinds.filtered {
+                    assert!(f.is_full(), "a footprint in an unfiltered file");
+                }
+            }
+        }
+        if let Ok(r) = block.rlod(voxel_offset) {
+            if entry.rlod.is_some() {
+                assert_eq!(entry.rlod, Some(r), "the walk and the accessor disagree");
+            }
+            if !kinds.filtered {
+                assert_eq!(
+                    (r.coverage, r.shade),
+                    (255, 255),
+                    "unfiltered R-LOD not full"
+                );
             }
         }
     }
@@ -220,7 +262,10 @@ pub fn treelet_decode(data: &[u8]) {
             sum.basic_nodes + sum.lod_nodes + sum.leaves,
             seen.len() as u64
         );
-        assert_eq!(sum.voxels_single + sum.voxels_six, sum.lod_nodes);
+        let voxels = if kinds.voxel { sum.lod_nodes } else { 0 };
+        let rlods = if kinds.rlod { sum.lod_nodes } else { 0 };
+        assert_eq!(sum.voxels_single + sum.voxels_six, voxels);
+        assert_eq!(sum.rlods, rlods);
     }
     for t in 0..=block.treelet_count() {
         if let Ok(span) = block.treelet_span(t) {

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use oocfmt::directory as dir;
 use oocfmt::header as hdr;
-use oocfmt::records::{LodKinds, Node, TreeletBlock, TriangleBlock, RLOD_LEN};
+use oocfmt::records::{LodKinds, Node, TreeletBlock, TriangleBlock, Voxel, RLOD_LEN};
 use oocfmt::trailer as trl;
 use oocfmt::{BlockKind, CodecId, ReadOptions, Reader};
 
@@ -161,7 +161,7 @@ impl Dump<'_> {
         let t = b.treelet_count();
         self.field(at, 4, &format!("treelet count {t}"));
         self.field(at + 4, 4, &format!("node bytes {}", b.node_area().len()));
-        let area = if kinds == LodKinds::VOXEL {
+        let area = if !kinds.rlod {
             "voxel bytes"
         } else {
             "LOD area bytes (voxels and R-LODs)"
@@ -172,17 +172,42 @@ impl Dump<'_> {
         let nodes_at = at + 16 + 4 * t;
         let mut rows = Vec::new();
         let mut entries = Vec::new();
-        let _ = b.walk(|tl, pos, n| {
+        let _ = b.walk_lods(|tl, pos, n, entry| {
             if let Node::Lod { voxel_offset, .. } = *n {
                 let off = voxel_offset as usize;
-                let voxel = b.voxel(voxel_offset).map_or(0, |v| v.byte_len());
-                if voxel > 0 {
-                    let label = format!("voxel of the LOD node at {pos}: {} sample(s)", voxel / 4);
-                    entries.push((off, voxel, label));
+                if let Some(v) = entry.voxel {
+                    let samples = match v {
+                        Voxel::Single(..) => 1,
+                        Voxel::Six(..) => 6,
+                    };
+                    let label = format!("voxel of the LOD node at {pos}: {samples} sample(s)");
+                    entries.push((off, 4 * samples, label));
+                    // Footprint words (spec §5.1): what the stored length has beyond the samples.
+                    let words = entry.voxel_len.saturating_sub(4 * samples);
+                    if words > 0 {
+                        let feet: Vec<String> = (0..samples)
+                            .map(|f| {
+                                let fp = v.face(f).1;
+                                format!("{}/{}", fp.shade, fp.coverage)
+                            })
+                            .collect();
+                        let label = format!(
+                            "footprints of the LOD node at {pos} (shade/coverage, /255): {}",
+                            feet.join(" ")
+                        );
+                        entries.push((off + 4 * samples, words, label));
+                    }
                 }
-                if kinds.rlod {
-                    let label = format!("R-LOD of the LOD node at {pos}: normal, offset, colour, deviation and expansion codes");
-                    entries.push((off + voxel, RLOD_LEN, label));
+                if let Some(r) = entry.rlod {
+                    let label = if kinds.filtered {
+                        format!(
+                            "R-LOD of the LOD node at {pos}: normal, offset, colour, coverage {}, deviation and expansion codes, shade {}",
+                            r.coverage, r.shade
+                        )
+                    } else {
+                        format!("R-LOD of the LOD node at {pos}: normal, offset, colour, deviation and expansion codes")
+                    };
+                    entries.push((off + entry.voxel_len, RLOD_LEN, label));
                 }
             }
             let label = match *n {

@@ -2,7 +2,7 @@
 
 use serde::Serialize;
 
-use oocfmt::records::{Node, Sample, Voxel};
+use oocfmt::records::{Footprint, Node, Sample, Voxel};
 use oocfmt::{BlockKind, Reader};
 
 use crate::error::CliError;
@@ -54,6 +54,11 @@ pub struct RlodDump {
     pub normal: [f32; 3],
     pub offset: f32,
     pub colour: [u8; 3],
+    /// Coverage α and shade σ (spec §6.4), in a file with `LOD_FILTERED` only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<f32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shade: Option<f32>,
     pub deviation: f32,
     pub expansion: f32,
     pub error_radius: f32,
@@ -92,6 +97,11 @@ pub struct SampleDump {
     pub colour: [f32; 3],
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub empty: bool,
+    /// A voxel sample's footprint (spec §5.1), where it is not full (σ = α = 1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shade: Option<f32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<f32>,
 }
 
 impl From<Sample> for SampleDump {
@@ -100,6 +110,19 @@ impl From<Sample> for SampleDump {
             normal: s.normal(),
             colour: s.colour(),
             empty: s.is_empty(),
+            shade: None,
+            coverage: None,
+        }
+    }
+}
+
+impl From<(Sample, Footprint)> for SampleDump {
+    fn from((s, f): (Sample, Footprint)) -> Self {
+        let full = f.is_full();
+        SampleDump {
+            shade: (!full).then(|| f.shade_f32()),
+            coverage: (!full).then(|| f.coverage_f32()),
+            ..SampleDump::from(s)
         }
     }
 }
@@ -208,17 +231,20 @@ fn treelets(block: &oocfmt::Block) -> Result<Vec<TreeletDump>, CliError> {
             } => {
                 let samples = match view.lod_kinds().voxel {
                     true => Some(match view.voxel(voxel_offset)? {
-                        Voxel::Single(s) => vec![s.into()],
-                        Voxel::Six(s) => s.iter().map(|&x| x.into()).collect(),
+                        v @ Voxel::Single(..) => vec![v.face(0).into()],
+                        v @ Voxel::Six(..) => (0..6).map(|f| v.face(f).into()).collect(),
                     }),
                     false => None,
                 };
                 if view.lod_kinds().rlod {
                     let r = view.rlod(voxel_offset)?;
+                    let filtered = view.lod_kinds().filtered;
                     rlod = Some(RlodDump {
                         normal: r.normal,
                         offset: r.offset,
                         colour: r.colour,
+                        coverage: filtered.then(|| r.coverage_f32()),
+                        shade: filtered.then(|| r.shade_f32()),
                         deviation: r.deviation(radius),
                         expansion: r.expansion(radius),
                         error_radius: r.error_radius(radius),

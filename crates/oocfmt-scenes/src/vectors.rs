@@ -14,7 +14,10 @@ use oocfmt_build::layout::{write_container, LayoutError, LayoutOptions};
 use oocfmt_meshio::mesh::Mesh;
 
 mod more;
-pub use more::{grid_mesh, write_grid, write_rlod_only, GRID_BLOCK_SIZE, GRID_ORIGIN};
+pub use more::{
+    filtered_mesh, grid_mesh, write_filtered, write_grid, write_rlod_only, GRID_BLOCK_SIZE,
+    GRID_ORIGIN,
+};
 
 /// The block size of every vector but `grid-8k`: the smallest, so that even tiny scenes
 /// exercise packing.
@@ -22,12 +25,13 @@ pub const VECTOR_BLOCK_SIZE: u64 = 4096;
 /// A fixed generator name: a version number here would change the vectors on every release.
 pub const VECTOR_GENERATOR: &str = "oocfmt-build spec vectors";
 /// The vector names, in the order [`write_vectors`] writes them.
-pub const VECTOR_NAMES: [&str; 7] = [
+pub const VECTOR_NAMES: [&str; 8] = [
     "quad",
     "lod-none",
     "lod-lz4",
     "lod-zstd",
     "lod-rlod",
+    "lod-filtered",
     "rlod-only",
     "grid-8k",
 ];
@@ -65,6 +69,9 @@ pub fn write_vectors(dir: &Path) -> Result<Vec<PathBuf>, VectorError> {
     }
     let path = dir.join("lod-rlod.oocf");
     write_lod_kinds(&path, Codec::None, LodKinds::BOTH)?;
+    out.push(path);
+    let path = dir.join("lod-filtered.oocf");
+    write_filtered(&path)?;
     out.push(path);
     let path = dir.join("rlod-only.oocf");
     write_rlod_only(&path)?;
@@ -122,13 +129,16 @@ pub fn write_quad(path: &Path) -> Result<(), VectorError> {
 /// The leaf size of the LOD vectors: small, so the little scene still makes a deep tree.
 pub const LOD_MAX_LEAF_TRIANGLES: u32 = 2;
 
+/// The colour of the LOD vectors' floor.
+const FLOOR_COLOUR: [u8; 4] = [120, 150, 110, 255];
+
 /// The LOD vectors' scene (72 triangles): a 4 × 4 floor of unit squares (material "floor",
 /// one colour, facing +z) with a unit cube standing on it, its five visible faces split into
 /// 2 × 2 squares, each face its own colour (material "paint"). Cells that hold only floor get
 /// one-sample voxels; cells around the cube see several faces and get six samples.
 pub fn lod_mesh() -> Mesh {
     let mut b = BoxBuilder::default();
-    let floor = [120, 150, 110, 255];
+    let floor = FLOOR_COLOUR;
     let (red, green, blue, yellow, white) = (
         [200, 40, 40, 255],
         [40, 180, 60, 255],
@@ -237,10 +247,13 @@ pub fn write_lod_kinds(path: &Path, codec: Codec, kinds: LodKinds) -> Result<(),
     Ok(())
 }
 
+/// Unfiltered voxels unless a vector says otherwise: the 1.0 vectors stay 1.0 files whatever
+/// the writer's default.
 fn vector_options(codec: Codec) -> Result<LayoutOptions, VectorError> {
     Ok(LayoutOptions {
         write: WriteOptions {
             codec,
+            lod: LodKinds::VOXEL,
             ..WriteOptions::default()
         }
         .with_block_size(VECTOR_BLOCK_SIZE)?,
@@ -321,6 +334,10 @@ mod tests {
 
     #[test]
     fn the_scene_faces_the_way_its_normals_say() {
+        let f = filtered_mesh();
+        assert_eq!(f.validate(), Ok(()));
+        // Four unit floor squares (8 triangles) give way to 64 half-covered squares of 1/4.
+        assert_eq!(f.triangles.len(), 72 - 8 + 64);
         let m = lod_mesh();
         assert_eq!(m.validate(), Ok(()));
         assert_eq!(m.triangles.len(), 72);
@@ -395,15 +412,16 @@ mod tests {
             assert_eq!(m.materials.len(), 2);
             let (lod, minor) = match name {
                 "lod-rlod" => (oocfmt::records::LodKinds::BOTH, 1),
+                "lod-filtered" => (oocfmt::records::LodKinds::BOTH.filtered(), 2),
                 "rlod-only" => (oocfmt::records::LodKinds::RLOD, 1),
                 _ => (oocfmt::records::LodKinds::VOXEL, 0),
             };
             assert_eq!((r.lod_kinds(), r.header().minor), (lod, minor), "{name}");
-            // The R-LOD vector adds a 24-byte record to each of its LOD nodes.
-            let most = if name.contains("rlod") { 12288 } else { 8192 };
+            // The R-LOD vectors add a 24-byte record to each of their LOD nodes.
+            let most = if lod.rlod { 12288 } else { 8192 };
             assert!(r.file_len() < most, "{name} is {} bytes", r.file_len());
             let want = match name {
-                "lod-lz4" => CodecId::Lz4,
+                "lod-lz4" | "lod-filtered" => CodecId::Lz4,
                 "lod-zstd" => CodecId::Zstd,
                 _ => CodecId::None,
             };

@@ -45,7 +45,7 @@ fn treelet_block() -> Vec<u8> {
             block: 900 + rnd() % 50,
         });
         let s = Sample::pack([(rnd() % 7) as f32 - 3.0, 1.0, 0.5], [0.2, 0.6, 0.9]);
-        let voxel = w.push_voxel(&Voxel::Single(s));
+        let voxel = w.push_voxel(&Voxel::single(s), false);
         w.push_node(&Node::Lod {
             axis: 1,
             split: (rnd() % 1000) as f32 * 0.01,

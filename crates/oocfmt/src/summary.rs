@@ -7,7 +7,8 @@ use serde::Serialize;
 use crate::directory::{BlockEntry, BlockKind};
 use crate::error::{bad, Code, Result};
 use crate::header::{
-    COMPAT_LOD_VOXELS, COMPAT_PROXIES, INCOMPAT_LOD_NO_VOXELS, INCOMPAT_LOD_RLODS,
+    COMPAT_LOD_VOXELS, COMPAT_PROXIES, INCOMPAT_LOD_FILTERED, INCOMPAT_LOD_NO_VOXELS,
+    INCOMPAT_LOD_RLODS,
 };
 use crate::metadata::Metadata;
 use crate::records::triangle::ATTR_MATERIALS;
@@ -312,6 +313,9 @@ fn build_summary(reader: &Reader, levels: Vec<LevelRow>, leaf_refs: u64) -> Summ
     }
     if h.incompatible_features & INCOMPAT_LOD_NO_VOXELS != 0 {
         feature_names.push("LOD_NO_VOXELS".to_string());
+    }
+    if h.incompatible_features & INCOMPAT_LOD_FILTERED != 0 {
+        feature_names.push("LOD_FILTERED".to_string());
     }
     Summary {
         file: reader.name().to_string(),

@@ -84,3 +84,91 @@ fn leaves_sharing_triangles_store_them_once_per_block() -> Result<(), String> {
     assert_eq!(kinds, vec![BlockKind::Treelet, BlockKind::Triangle]);
     Ok(())
 }
+
+/// What the LOD entries of a file hold: the voxel lengths seen, how many voxel faces and R-LOD
+/// records are partly covered, and how many R-LODs have a shade below 1. (The scene's faces are
+/// axis-aligned, so no voxel face sees normals that disagree: its shade stays 1.)
+#[derive(Debug, Default)]
+struct LodSurvey {
+    voxel_lens: std::collections::BTreeSet<usize>,
+    faces_partly_covered: usize,
+    rlods: usize,
+    rlods_partly_covered: usize,
+    rlods_shaded: usize,
+}
+
+fn survey_lods(path: &Path) -> Result<LodSurvey, String> {
+    use oocfmt::{BlockKind, ReadOptions, Reader};
+    let r = Reader::open(path, ReadOptions::default()).map_err(|e| e.to_string())?;
+    let mut s = LodSurvey::default();
+    for (id, e) in (0u32..).zip(r.entries()) {
+        if e.kind != BlockKind::Treelet {
+            continue;
+        }
+        let b = r.read_block(id).map_err(|e| e.to_string())?;
+        let t = b.treelets().map_err(|e| e.to_string())?;
+        t.walk_lods(|_, _, _, entry| {
+            if let Some(v) = entry.voxel {
+                s.voxel_lens.insert(entry.voxel_len);
+                let faces = match v {
+                    oocfmt::records::Voxel::Single(..) => 1,
+                    oocfmt::records::Voxel::Six(..) => 6,
+                };
+                for f in (0..faces).map(|f| v.face(f).1) {
+                    s.faces_partly_covered += usize::from(f.coverage < 255);
+                }
+            }
+            if let Some(x) = entry.rlod {
+                s.rlods += 1;
+                s.rlods_partly_covered += usize::from(x.coverage < 255);
+                s.rlods_shaded += usize::from(x.shade < 255);
+            }
+            Ok(())
+        })
+        .map_err(|e| e.to_string())?;
+    }
+    Ok(s)
+}
+
+/// Spec §14: `lod-filtered` holds voxels of all four lengths (4, 8, 24 and 36 bytes),
+/// footprints with coverage below 1, and R-LOD records with coverage and shade; the other
+/// vectors are unfiltered 1.0 and 1.1 files with neither.
+#[test]
+fn the_filtered_vector_holds_what_the_spec_lists() -> Result<(), String> {
+    use oocfmt::records::LodKinds;
+    use oocfmt::{ReadOptions, Reader};
+    let fresh = tempfile::tempdir().map_err(|e| e.to_string())?;
+    let paths = write_vectors(fresh.path()).map_err(|e| e.to_string())?;
+    assert!(VECTOR_NAMES.contains(&"lod-filtered"));
+    for (path, name) in paths.iter().zip(VECTOR_NAMES) {
+        let r = Reader::open(path, ReadOptions::default()).map_err(|e| e.to_string())?;
+        let (kinds, minor) = (r.lod_kinds(), r.header().minor);
+        let s = survey_lods(path)?;
+        // `inspect --json` names the bit (docs/inspect-json.md).
+        let names = oocfmt::summary::summarize(&r)
+            .map_err(|e| e.to_string())?
+            .feature_names;
+        let named = names.iter().any(|n| n == "LOD_FILTERED");
+        assert_eq!(named, kinds.filtered, "{name}: {names:?}");
+        if name != "lod-filtered" {
+            assert!(
+                !kinds.filtered && minor <= 1,
+                "{name}: {kinds:?} minor {minor}"
+            );
+            assert!(
+                s.voxel_lens.iter().all(|&l| l == 4 || l == 24),
+                "{name}: {s:?}"
+            );
+            continue;
+        }
+        assert_eq!((kinds, minor), (LodKinds::BOTH.filtered(), 2), "{name}");
+        let lens: Vec<usize> = s.voxel_lens.iter().copied().collect();
+        assert_eq!(lens, [4, 8, 24, 36], "{name}: {s:?}");
+        assert!(s.faces_partly_covered > 0, "{name}: {s:?}");
+        assert!(
+            s.rlods > 0 && s.rlods_partly_covered > 0 && s.rlods_shaded > 0,
+            "{name}: {s:?}"
+        );
+    }
+    Ok(())
+}

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use oocfmt::metadata::{Build, Counts, Material, Provenance, Scene, Schema, TreeletRef};
 use oocfmt::records::triangle::{oct_encode, ATTR_COLOURS, ATTR_MATERIALS, ATTR_NORMALS};
 use oocfmt::records::{
-    Node, ProxyRecord, Sample, TreeletBlockWriter, Triangle, TriangleBlockWriter, Vertex, Voxel,
-    NO_PROXY, PROXY_DIRECTIONS,
+    Footprint, LodKinds, Node, ProxyRecord, Rlod, Sample, TreeletBlockWriter, Triangle,
+    TriangleBlockWriter, Vertex, Voxel, NO_PROXY, PROXY_DIRECTIONS,
 };
 use oocfmt::verify::{verify, Depth, Report, VerifyOptions};
 use oocfmt::{BlockKind, Code, Codec, Metadata, Reader, Severity, WriteOptions, Writer};
@@ -84,6 +84,7 @@ pub const FIXTURES: &[(&str, Build1)] = &[
     ("fx-quad-none", write_quad),
     ("fx-lod-lz4", write_lod),
     ("fx-deep-zstd", write_deep),
+    ("fx-filtered-lz4", write_filtered),
     ("fx-empty", write_empty),
 ];
 
@@ -99,11 +100,13 @@ pub fn fixture(name: &str) -> TestResult<Vec<u8>> {
     Ok(std::fs::read(&path)?)
 }
 
+/// Options for an unfiltered voxel-only file (the 1.0 layout every fixture but
+/// `fx-filtered-lz4` keeps, so their bytes do not change with the writer's default).
 pub fn opts(block_size_log2: u8, codec: Codec) -> WriteOptions {
     WriteOptions {
         block_size_log2,
         codec,
-        ..WriteOptions::default()
+        lod: LodKinds::VOXEL,
     }
 }
 
@@ -269,7 +272,7 @@ pub fn write_lod(path: &Path) -> TestResult<oocfmt::WriteSummary> {
         left: 1,
         right: 4,
     });
-    let vox = t.push_voxel(&Voxel::Six(six_samples()));
+    let vox = t.push_voxel(&Voxel::six(six_samples()), false);
     t.push_node(&Node::Lod {
         axis: 1,
         split: 0.5,
@@ -379,11 +382,11 @@ pub fn write_deep(path: &Path) -> TestResult<oocfmt::WriteSummary> {
         w.write_block(BlockKind::Triangle, 0, 40, &tri_block(0.5, 40)?)?,
         0
     );
-    let single = |c: f32| Voxel::Single(Sample::pack([0.0, 1.0, 0.2], [c, c, c]));
+    let single = |c: f32| Voxel::single(Sample::pack([0.0, 1.0, 0.2], [c, c, c]));
     // Block 1: level 0, the root treelet is a lone LOD node.
     let mut t = TreeletBlockWriter::new();
     t.begin_treelet();
-    let vox = t.push_voxel(&single(0.5));
+    let vox = t.push_voxel(&single(0.5), false);
     t.push_node(&Node::Lod {
         axis: 0,
         split: 1.0,
@@ -404,7 +407,7 @@ pub fn write_deep(path: &Path) -> TestResult<oocfmt::WriteSummary> {
     // Block 3: level 1.
     let mut t = TreeletBlockWriter::new();
     t.begin_treelet();
-    let vox = t.push_voxel(&single(0.9));
+    let vox = t.push_voxel(&single(0.9), false);
     t.push_node(&Node::Lod {
         axis: 1,
         split: 1.0,
@@ -465,6 +468,135 @@ pub fn write_deep(path: &Path) -> TestResult<oocfmt::WriteSummary> {
         schema,
         Vec::new(),
         1,
+    );
+    Ok(w.finish(&meta)?)
+}
+
+/// Pre-filtered LOD entries (`LOD_RLODS` and `LOD_FILTERED`, minor 2): over the box 0..2 × 0..2
+/// × 0..2, a root basic node (x = 1) over two basic nodes (y = 1), each over two LOD nodes
+/// (z = 1, left child only) whose child treelets are one leaf each, in a level-1 block. The four
+/// voxels take the four lengths of spec §5.1, in node order: 1-sample (4 bytes), 1-sample with
+/// a footprint (8), 6-sample (24), 6-sample with footprints (36); each is followed by an R-LOD
+/// record (coverage and shade 255 on the first, below 255 on the others). LZ4, 4 KiB blocks.
+pub fn write_filtered(path: &Path) -> TestResult<oocfmt::WriteSummary> {
+    write_filtered_with(path, LodKinds::BOTH.filtered())
+}
+
+/// [`write_filtered`]'s tree with the LOD entries `kinds` lays out: without `LOD_FILTERED` the
+/// footprints and the R-LODs' coverage and shade are dropped (the voxels are then 4 or 24 bytes).
+pub fn write_filtered_with(path: &Path, kinds: LodKinds) -> TestResult<oocfmt::WriteSummary> {
+    let o = WriteOptions {
+        lod: kinds,
+        ..opts(12, Codec::Lz4)
+    };
+    let mut w = Writer::create(path, o)?;
+    let up = Sample::pack([0.0, 0.0, 1.0], [0.8, 0.6, 0.4]);
+    let half = |k: usize| Footprint::new(0.5 + 0.05 * k as f64, 0.25 + 0.1 * k as f64);
+    let mut feet = [Footprint::FULL; 6];
+    for (k, f) in feet.iter_mut().enumerate().skip(1) {
+        *f = half(k);
+    }
+    let voxels = [
+        Voxel::single(up),
+        Voxel::Single(up, Footprint::new(0.7, 0.4)),
+        Voxel::six(six_samples()),
+        Voxel::Six(six_samples(), feet),
+    ];
+    // Block 0: level 0. Root at 0, basic nodes at 8 and 64, LOD nodes at 16, 40, 72, 96.
+    let mut t = TreeletBlockWriter::new();
+    t.begin_treelet();
+    let basic = |axis, left, right| Node::Basic {
+        axis,
+        split: 1.0,
+        left,
+        right,
+    };
+    t.push_node(&basic(0, 1, 8));
+    for (half_x, pair) in voxels.chunks(2).enumerate() {
+        t.push_node(&basic(1, 1, 4));
+        for (half_y, voxel) in pair.iter().enumerate() {
+            let k = 2 * half_x + half_y;
+            let (coverage, shade) = if k == 0 {
+                (255, 255)
+            } else {
+                (60 * k as u8, 250 - 20 * k as u8)
+            };
+            // The plane z = 0.5 + k / 8 crosses every LOD node's cell.
+            let rlod = Rlod {
+                normal: [0.0, 0.0, 1.0],
+                offset: 0.5 + k as f32 / 8.0,
+                colour: [200, 100 + k as u8, 50],
+                deviation_code: 3,
+                expansion_code: 5,
+                coverage,
+                shade,
+            };
+            let vox = kinds.voxel.then(|| t.push_voxel(voxel, kinds.filtered));
+            let rl = kinds.rlod.then(|| t.push_rlod(&rlod, kinds.filtered));
+            let entry = vox.or(rl).ok_or("no LOD kind")?;
+            t.push_node(&Node::Lod {
+                axis: 2,
+                split: 1.0,
+                // Half the diagonal of a 1 × 1 × 2 cell, √6 / 2 = 1.22474…, rounded up.
+                radius: 1.2248,
+                left_present: true,
+                right_present: false,
+                child_treelet: k as u32,
+                child_block: 1,
+                voxel_offset: entry,
+                proxy: NO_PROXY,
+            });
+        }
+    }
+    assert_eq!(w.write_block(BlockKind::Treelet, 0, 1, &t.finish())?, 0);
+    // Block 1: level 1, four one-leaf treelets.
+    let mut t = TreeletBlockWriter::new();
+    for k in 0..4u16 {
+        t.begin_treelet();
+        t.push_node(&leaf(k, 1, 2));
+    }
+    assert_eq!(w.write_block(BlockKind::Treelet, 1, 4, &t.finish())?, 1);
+    // Block 2: triangles.
+    let mut tri = TriangleBlockWriter::new(ATTR_COLOURS);
+    square_vertices(&mut tri, 0.5, ATTR_COLOURS)?;
+    for i in 0..4u16 {
+        let v = if i % 2 == 0 { [0, 1, 2] } else { [0, 2, 3] };
+        tri.push_triangle(Triangle { v, material: None })?;
+    }
+    for e in 0..4 {
+        tri.push_list(e)?;
+    }
+    tri.set_primary_count(4);
+    assert_eq!(w.write_block(BlockKind::Triangle, 0, 4, &tri.finish())?, 2);
+    let counts = Counts {
+        triangles: 4,
+        triangle_records: 4,
+        vertices: 4,
+        basic_nodes: 3,
+        lod_nodes: 4,
+        leaves: 4,
+        voxels_single: if kinds.voxel { 2 } else { 0 },
+        voxels_six: if kinds.voxel { 2 } else { 0 },
+        proxies: 0,
+        treelets: 5,
+        depth: 4,
+        lod_levels: 2,
+    };
+    let schema = Schema {
+        vertex_colours: true,
+        six_sample_voxels: kinds.voxel,
+        ..Schema::default()
+    };
+    let meta = metadata(
+        scene([0.0; 3], [2.0; 3]),
+        Some(TreeletRef {
+            block: 0,
+            treelet: 0,
+        }),
+        counts,
+        schema,
+        Vec::new(),
+        2,
     );
     Ok(w.finish(&meta)?)
 }

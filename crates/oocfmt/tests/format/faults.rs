@@ -127,7 +127,7 @@ fn rewrite<F: OutputFile>(
     let opts = WriteOptions {
         block_size_log2: src.header().block_size_log2,
         codec,
-        ..WriteOptions::default()
+        lod: src.lod_kinds(),
     };
     let mut w = Writer::create_with(path, opts, wrap)?;
     for id in 0..src.header().sections.block_count {

@@ -11,8 +11,8 @@ use oocfmt::header::{Header, SectionTable};
 use oocfmt::metadata::{Build, Counts, Material, Provenance, Scene, Schema, TreeletRef};
 use oocfmt::records::triangle::{oct_decode, oct_encode};
 use oocfmt::records::{
-    Node, ProxyRecord, Sample, TreeletBlock, TreeletBlockWriter, Triangle, TriangleBlock,
-    TriangleBlockWriter, Vertex, Voxel,
+    Footprint, LodKinds, Node, ProxyRecord, Sample, TreeletBlock, TreeletBlockWriter, Triangle,
+    TriangleBlock, TriangleBlockWriter, Vertex, Voxel,
 };
 use oocfmt::verify::VerifyOptions;
 use oocfmt::{
@@ -127,11 +127,36 @@ fn sample() -> impl Strategy<Value = Sample> {
         })
 }
 
+/// A footprint: often [`Footprint::FULL`] (nothing to store), else any shade and coverage.
+fn footprint() -> impl Strategy<Value = Footprint> {
+    prop_oneof![
+        1 => Just(Footprint::FULL),
+        2 => (any::<u8>(), any::<u8>()).prop_map(|(shade, coverage)| Footprint { shade, coverage }),
+    ]
+}
+
+/// A voxel of either kind, with footprints (all [`Footprint::FULL`] about a third of the time
+/// for 1-sample voxels, rarely for 6-sample ones).
 fn voxel() -> impl Strategy<Value = Voxel> {
     prop_oneof![
-        sample().prop_map(Voxel::Single),
-        prop::array::uniform6(sample()).prop_map(Voxel::Six)
+        (sample(), footprint()).prop_map(|(s, f)| Voxel::Single(s, f)),
+        (
+            prop::array::uniform6(sample()),
+            prop::array::uniform6(footprint())
+        )
+            .prop_map(|(s, f)| Voxel::Six(s, f)),
+        prop::array::uniform6(sample()).prop_map(Voxel::six),
     ]
+}
+
+/// What `v` decodes to from a file written with (`filtered`) or without `LOD_FILTERED`: the
+/// same voxel, or without footprints.
+fn as_stored(v: Voxel, filtered: bool) -> Voxel {
+    match (v, filtered) {
+        (v, true) => v,
+        (Voxel::Single(s, _), false) => Voxel::single(s),
+        (Voxel::Six(s, _), false) => Voxel::six(s),
+    }
 }
 
 fn proxy_sample() -> impl Strategy<Value = Sample> {
@@ -256,10 +281,12 @@ fn shape() -> impl Strategy<Value = Shape> {
     })
 }
 
-/// Lays `s` out in preorder; appends `(position, node, voxel)` for every node.
+/// Lays `s` out in preorder, voxels as a file with (`filtered`) or without `LOD_FILTERED`
+/// stores them; appends `(position, node, voxel as decoded)` for every node.
 fn emit(
     w: &mut TreeletBlockWriter,
     s: &Shape,
+    filtered: bool,
     out: &mut Vec<(usize, Node, Option<Voxel>)>,
 ) -> oocfmt::Result<()> {
     let pos = w.next_node_pos();
@@ -283,7 +310,7 @@ fn emit(
             for (k, child) in [left, right].into_iter().enumerate() {
                 if let Some(c) = child {
                     let at = w.next_node_pos();
-                    emit(w, c, out)?;
+                    emit(w, c, filtered, out)?;
                     units[k] = TreeletBlockWriter::units_between(pos, at)?;
                 }
             }
@@ -306,7 +333,7 @@ fn emit(
             proxy,
             voxel,
         } => {
-            let voxel_offset = w.push_voxel(voxel);
+            let voxel_offset = w.push_voxel(voxel, filtered);
             let node = Node::Lod {
                 axis: *axis,
                 split: *split,
@@ -319,7 +346,7 @@ fn emit(
                 proxy: *proxy,
             };
             w.push_node(&node);
-            out.push((pos, node, Some(*voxel)));
+            out.push((pos, node, Some(as_stored(*voxel, filtered))));
         }
         Shape::Leaf {
             count,
@@ -419,7 +446,8 @@ enum Expect {
     Proxies(Vec<ProxyRecord>),
 }
 
-fn build(spec: &BlockSpec, level: u16, attrs: u16) -> oocfmt::Result<Built> {
+/// Encodes `spec` as a block of a file with (`filtered`) or without `LOD_FILTERED`.
+fn build(spec: &BlockSpec, level: u16, attrs: u16, filtered: bool) -> oocfmt::Result<Built> {
     Ok(match spec {
         BlockSpec::Treelets(shapes) => {
             let mut w = TreeletBlockWriter::new();
@@ -428,7 +456,7 @@ fn build(spec: &BlockSpec, level: u16, attrs: u16) -> oocfmt::Result<Built> {
                 w.begin_treelet();
                 let start = w.next_node_pos();
                 let mut nodes = Vec::new();
-                emit(&mut w, s, &mut nodes)?;
+                emit(&mut w, s, filtered, &mut nodes)?;
                 // Positions relative to the treelet start, as the walk reports them absolute.
                 let _ = start;
                 all.push(nodes);
@@ -621,6 +649,7 @@ fn round_trip(
     mut levels: Vec<u16>,
     codec: Codec,
     log2: u8,
+    filtered: bool,
 ) -> Result<(), TestCaseError> {
     let fail = |e: &dyn std::fmt::Display| TestCaseError::fail(e.to_string());
     let attrs = meta.schema.triangle_attributes();
@@ -633,16 +662,21 @@ fn round_trip(
         } else {
             0
         };
-        blocks.push(build(s, level, attrs).map_err(|e| fail(&e))?);
+        blocks.push(build(s, level, attrs, filtered).map_err(|e| fail(&e))?);
     }
     let block_size = 1usize << log2;
     blocks.retain(|b| b.raw.len() <= block_size);
     let dir = tempfile::tempdir().map_err(|e| fail(&e))?;
     let path = dir.path().join("rt.oocf");
+    let lod = if filtered {
+        LodKinds::VOXEL.filtered()
+    } else {
+        LodKinds::VOXEL
+    };
     let opts = WriteOptions {
         block_size_log2: log2,
         codec,
-        ..WriteOptions::default()
+        lod,
     };
     let summary = write_file(&path, opts, &blocks, &meta).map_err(|e| fail(&e))?;
     let bytes = std::fs::read(&path).map_err(|e| fail(&e))?;
@@ -660,8 +694,15 @@ fn round_trip(
         prop_assert_eq!(r.identity(), summary.identity);
         prop_assert_eq!(r.file_len(), summary.file_length);
         prop_assert_eq!(r.header().block_size_log2, log2);
-        prop_assert_eq!((r.header().major, r.header().minor), (1, 0));
-        prop_assert_eq!(r.header().incompatible_features, 0);
+        // Spec §11: an unfiltered voxel-only file is a 1.0 file; a filtered one is 1.2.
+        let (minor, bits) = if filtered {
+            (2, oocfmt::header::INCOMPAT_LOD_FILTERED)
+        } else {
+            (0, 0)
+        };
+        prop_assert_eq!((r.header().major, r.header().minor), (1, minor));
+        prop_assert_eq!(r.header().incompatible_features, bits);
+        prop_assert_eq!(r.lod_kinds(), lod);
         let has_proxies = blocks.iter().any(|b| b.kind == BlockKind::Proxy);
         prop_assert_eq!(
             r.header().compatible_features & oocfmt::header::COMPAT_PROXIES != 0,
@@ -732,8 +773,9 @@ proptest! {
         levels in prop::collection::vec(0u16..4, 7),
         codec in codec(),
         log2 in 12u8..=16,
+        filtered in any::<bool>(),
     ) {
-        round_trip(meta, specs, levels, codec, log2)?;
+        round_trip(meta, specs, levels, codec, log2, filtered)?;
     }
 }
 
@@ -817,15 +859,70 @@ proptest! {
         prop_assert_eq!(s.with_single(true).with_single(false), s);
         let n = s.normal();
         prop_assert!((dot(n, n) - 1.0).abs() < 1e-5);
-        let mut area = vec![0u8; pad * 4];
-        vox.encode_into(&mut area);
-        prop_assert_eq!(area.len(), pad * 4 + vox.byte_len());
-        prop_assert_eq!(Voxel::decode(&area, pad * 4).ok(), Some(vox));
-        prop_assert!(Voxel::decode(&area, pad * 4 + 1).is_err(), "unaligned voxel offset");
-        prop_assert!(Voxel::decode(&area[..area.len() - 1], pad * 4).is_err());
-        for face in 0..6 {
-            let f = vox.face(face);
-            prop_assert_eq!(f, match vox { Voxel::Single(x) => x, Voxel::Six(x) => x[face] });
+        for filtered in [false, true] {
+            let mut area = vec![0u8; pad * 4];
+            vox.encode_into(&mut area, filtered);
+            prop_assert_eq!(area.len(), pad * 4 + vox.byte_len(filtered));
+            let back = as_stored(vox, filtered);
+            prop_assert_eq!(Voxel::decode(&area, pad * 4, filtered).ok(), Some(back));
+            prop_assert!(Voxel::decode(&area, pad * 4 + 1, filtered).is_err(), "unaligned voxel offset");
+            prop_assert!(Voxel::decode(&area[..area.len() - 1], pad * 4, filtered).is_err());
+            for face in 0..6 {
+                let f = back.face(face);
+                let want = match back { Voxel::Single(x, g) => (x, g), Voxel::Six(x, g) => (x[face], g[face]) };
+                prop_assert_eq!(f, want);
+            }
+        }
+    }
+
+    /// Spec §5.1: a file with `LOD_FILTERED` keeps a voxel's footprints, in 8 or 36 bytes where
+    /// one is not full (4 or 24 where all are, bit 30 clear); a file without it drops them, so
+    /// they decode full, in 4 or 24 bytes.
+    #[test]
+    fn voxel_footprints_round_trip_as_the_spec_lays_them_out(vox in voxel(), pad in 0usize..3) {
+        let (six, feet): (bool, Vec<Footprint>) = match vox {
+            Voxel::Single(_, f) => (false, vec![f]),
+            Voxel::Six(_, f) => (true, f.to_vec()),
+        };
+        let partial = feet.iter().any(|f| *f != Footprint::FULL);
+        for filtered in [false, true] {
+            let words = filtered && partial;
+            let want_len = match (six, words) {
+                (false, false) => 4,
+                (false, true) => 8,
+                (true, false) => 24,
+                (true, true) => 36,
+            };
+            let mut area = vec![0u8; pad * 4];
+            vox.encode_into(&mut area, filtered);
+            let at = pad * 4;
+            prop_assert_eq!(area.len() - at, want_len);
+            let word = |i: usize| u32::from_le_bytes([area[at + 4 * i], area[at + 4 * i + 1], area[at + 4 * i + 2], area[at + 4 * i + 3]]);
+            prop_assert_eq!(word(0) >> 30 & 1 == 1, words, "bit 30 of the first sample");
+            if words && !six {
+                let f = feet[0];
+                prop_assert_eq!(word(1), u32::from(f.shade) | u32::from(f.coverage) << 8);
+            }
+            if words && six {
+                for k in 0..3 {
+                    let half = |f: Footprint| u32::from(f.shade) | u32::from(f.coverage) << 8;
+                    prop_assert_eq!(word(6 + k), half(feet[2 * k]) | half(feet[2 * k + 1]) << 16);
+                }
+            }
+            let got = Voxel::decode(&area, at, filtered).ok();
+            let got_feet: Option<Vec<Footprint>> = got.map(|v| (0..6).map(|f| v.face(f).1).collect());
+            let want_feet: Vec<Footprint> = (0..6)
+                .map(|f| if filtered { feet[f.min(feet.len() - 1)] } else { Footprint::FULL })
+                .collect();
+            prop_assert_eq!(got_feet, Some(want_feet));
+            // The other reading: unfiltered bytes are valid in a filtered file (as 1.1 voxels);
+            // footprint words are refused in an unfiltered one.
+            let other = Voxel::decode(&area, at, !filtered).ok();
+            if words {
+                prop_assert_eq!(other, None);
+            } else {
+                prop_assert_eq!(other, Some(as_stored(vox, false)));
+            }
         }
     }
 
@@ -862,8 +959,9 @@ proptest! {
     }
 
     #[test]
-    fn treelet_and_triangle_blocks_round_trip_alone(spec in block_spec(), attrs in 0u16..8) {
-        let b = build(&spec, 0, attrs).map_err(|e| TestCaseError::fail(e.to_string()))?;
+    fn treelet_and_triangle_blocks_round_trip_alone(spec in block_spec(), attrs in 0u16..8, filtered in any::<bool>()) {
+        let lod = if filtered { LodKinds::VOXEL.filtered() } else { LodKinds::VOXEL };
+        let b = build(&spec, 0, attrs, filtered).map_err(|e| TestCaseError::fail(e.to_string()))?;
         let block = oocfmt::Block {
             id: 0,
             entry: BlockEntry {
@@ -877,13 +975,13 @@ proptest! {
                 item_count: b.items,
             },
             data: b.raw.clone(),
-            lod: oocfmt::records::LodKinds::VOXEL,
+            lod,
         };
         check_block(&block, &b.expect)?;
-        let facts = oocfmt::summary::survey_block(&block.entry, &b.raw, Some(attrs), oocfmt::records::LodKinds::VOXEL);
+        let facts = oocfmt::summary::survey_block(&block.entry, &b.raw, Some(attrs), lod);
         prop_assert!(facts.is_ok(), "{:?}", facts.err().map(|e| e.to_string()));
         if b.kind == BlockKind::Treelet {
-            prop_assert!(TreeletBlock::parse(&b.raw).is_ok());
+            prop_assert!(TreeletBlock::parse_with(&b.raw, lod).is_ok());
         }
         if b.kind == BlockKind::Triangle {
             prop_assert!(TriangleBlock::parse(&b.raw, None).is_ok());

@@ -501,3 +501,252 @@ fn the_writer_s_zstd_frames_state_their_content_size() -> TestResult {
     assert_eq!(out, raw);
     Ok(())
 }
+
+// ---------------------------------------------------------------------------------------------
+// §5.1 and §6.4: footprints and the R-LOD's coverage and shade (`LOD_FILTERED`, since 1.2)
+
+/// `common::write_filtered_with(kinds)`, as bytes.
+fn filtered_file(kinds: LodKinds) -> TestResult<Vec<u8>> {
+    let dir = tempfile::tempdir()?;
+    let path = dir.path().join("f.oocf");
+    common::write_filtered_with(&path, kinds)?;
+    Ok(std::fs::read(&path)?)
+}
+
+/// Bytes of the four voxels of `write_filtered_with` in a file with (`filtered`) or without
+/// `LOD_FILTERED`, in node order (spec §5.1: 4, 8, 24, 36; without footprints 4, 4, 24, 24).
+fn filtered_voxel_lens(filtered: bool) -> [usize; 4] {
+    if filtered {
+        [4, 8, 24, 36]
+    } else {
+        [4, 4, 24, 24]
+    }
+}
+
+/// `b` with its first treelet block holding LOD nodes edited by `edit(raw, entry_starts)`:
+/// where each LOD node's entry starts in the raw block, in node order.
+fn with_lod_area(
+    b: &[u8],
+    edit: &dyn Fn(&mut Vec<u8>, &[usize]) -> TestResult,
+) -> TestResult<Vec<u8>> {
+    with_lod_block(b, &|raw, lods| {
+        let treelets = common::get_u32(raw, 0) as usize;
+        let area = 16 + 4 * treelets + common::get_u32(raw, 4) as usize;
+        let entries: Vec<usize> = lods
+            .iter()
+            .map(|&p| area + common::get_u32(raw, p + 16) as usize)
+            .collect();
+        edit(raw, &entries)
+    })
+}
+
+/// Full verify reports `code` and no other error; so does deep verify, but for the metadata
+/// counts that the tree, whose walk stops at the broken block, no longer adds up to
+/// (`TREE_COUNTS`); and the reader refuses the block with `code`.
+fn refused_as(b: &[u8], code: Code, what: &str) -> TestResult {
+    only_errors(&verify_bytes(b, &at_depth(Depth::Full))?, code, what);
+    let r = verify_bytes(b, &deep())?;
+    let errors: Vec<Code> = r
+        .issues
+        .iter()
+        .filter(|i| i.severity == Severity::Error)
+        .map(|i| i.code)
+        .collect();
+    assert!(
+        !r.valid
+            && errors.contains(&code)
+            && errors.iter().all(|&c| c == code || c == Code::TreeCounts),
+        "{what}: deep: expected {code}, got {:?}",
+        r.issues
+    );
+    let r = open_bytes(b, ReadOptions::default())?;
+    assert_eq!(
+        read_all_blocks(&r).err().map(|e| e.code()),
+        Some(code),
+        "{what}: reader"
+    );
+    Ok(())
+}
+
+fn or_byte(raw: &mut [u8], at: usize, bits: u8) {
+    raw[at] |= bits;
+}
+
+#[test]
+fn the_filtered_fixture_holds_every_voxel_length() -> TestResult {
+    for (kinds, minor) in [
+        (LodKinds::BOTH.filtered(), 2),
+        (LodKinds::VOXEL.filtered(), 2),
+        (LodKinds::BOTH, 1),
+        (LodKinds::VOXEL, 0),
+    ] {
+        let b = filtered_file(kinds)?;
+        clean(&b, &format!("{kinds:?}"))?;
+        let r = open_bytes(&b, ReadOptions::default())?;
+        assert_eq!((r.lod_kinds(), r.header().minor), (kinds, minor));
+        let block = r.read_block(0)?;
+        let t = block.treelets()?;
+        let mut lens = Vec::new();
+        let mut feet = Vec::new();
+        t.walk_lods(|_, _, _, e| {
+            if let Some(v) = e.voxel {
+                lens.push(v.byte_len(kinds.filtered));
+                feet.extend((0..6).map(|f| v.face(f).1));
+            }
+            if let Some(x) = e.rlod {
+                feet.push(oocfmt::records::Footprint {
+                    shade: x.shade,
+                    coverage: x.coverage,
+                });
+            }
+            Ok(())
+        })?;
+        assert_eq!(lens, filtered_voxel_lens(kinds.filtered), "{kinds:?}");
+        let partial = feet.iter().filter(|f| f.coverage < 255).count();
+        assert_eq!(partial > 0, kinds.filtered, "{kinds:?}");
+    }
+    Ok(())
+}
+
+#[test]
+fn bit_30_on_a_voxel_without_lod_filtered_is_voxel() -> TestResult {
+    // Each voxel's first sample in the unfiltered twin of the filtered fixture, and in the
+    // 1.0 vector: bit 30 is the proxies' empty flag there, never a voxel's.
+    let twin = filtered_file(LodKinds::BOTH)?;
+    for k in 0..4 {
+        let b = with_lod_area(&twin, &|raw, entries| {
+            or_byte(raw, entries[k] + 3, 0x40);
+            Ok(())
+        })?;
+        refused_as(&b, Code::Voxel, &format!("unfiltered voxel {k}"))?;
+    }
+    let b = with_lod_area(&vector("lod-none.oocf")?, &|raw, entries| {
+        or_byte(raw, entries[0] + 3, 0x40);
+        Ok(())
+    })?;
+    refused_as(&b, Code::Voxel, "lod-none.oocf")
+}
+
+#[test]
+fn bit_30_on_samples_1_to_5_of_a_six_sample_voxel_is_voxel() -> TestResult {
+    // Voxel 2 is a 6-sample voxel without footprints, voxel 3 one with: only sample 0 may
+    // carry the flag, in every file.
+    for kinds in [LodKinds::BOTH.filtered(), LodKinds::BOTH] {
+        let src = filtered_file(kinds)?;
+        for k in [2, 3] {
+            for i in 1..6 {
+                let b = with_lod_area(&src, &|raw, entries| {
+                    or_byte(raw, entries[k] + 4 * i + 3, 0x40);
+                    Ok(())
+                })?;
+                refused_as(&b, Code::Voxel, &format!("{kinds:?}: voxel {k} sample {i}"))?;
+            }
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn a_one_sample_footprint_word_with_high_bits_is_voxel() -> TestResult {
+    // Voxel 1: a 1-sample voxel with its footprint word at bytes 4..8.
+    let src = filtered_file(LodKinds::BOTH.filtered())?;
+    for (byte, bits) in [(6, 0x01), (7, 0x80)] {
+        let b = with_lod_area(&src, &|raw, entries| {
+            or_byte(raw, entries[1] + byte, bits);
+            Ok(())
+        })?;
+        refused_as(&b, Code::Voxel, &format!("footprint byte {byte}"))?;
+    }
+    Ok(())
+}
+
+#[test]
+fn footprint_words_past_the_lod_area_are_voxel() -> TestResult {
+    // Voxel-only: voxel 3 (36 bytes) ends the area; cut one, two or three of its footprint
+    // words off.
+    let src = filtered_file(LodKinds::VOXEL.filtered())?;
+    for cut in [4u32, 8, 12] {
+        let b = with_lod_area(&src, &|raw, _| {
+            let len = raw.len() - cut as usize;
+            raw.truncate(len);
+            let v = common::get_u32(raw, 8) - cut;
+            common::put_u32(raw, 8, v);
+            Ok(())
+        })?;
+        refused_as(&b, Code::Voxel, &format!("{cut} bytes short"))?;
+    }
+    Ok(())
+}
+
+#[test]
+fn r_lod_coverage_and_shade_are_reserved_without_lod_filtered() -> TestResult {
+    let lens = filtered_voxel_lens(false);
+    let twin = filtered_file(LodKinds::BOTH)?;
+    for byte in [19, 22] {
+        for k in 0..4 {
+            let b = with_lod_area(&twin, &|raw, entries| {
+                or_byte(raw, entries[k] + lens[k] + byte, 1);
+                Ok(())
+            })?;
+            refused_as(&b, Code::Rlod, &format!("R-LOD {k} byte {byte}"))?;
+        }
+    }
+    // R-LODs alone, as in 1.1.
+    let b = with_lod_area(&vector("rlod-only.oocf")?, &|raw, entries| {
+        or_byte(raw, entries[0] + 19, 1);
+        Ok(())
+    })?;
+    refused_as(&b, Code::Rlod, "rlod-only.oocf byte 19")
+}
+
+#[test]
+fn r_lod_byte_23_is_reserved_with_lod_filtered() -> TestResult {
+    let lens = filtered_voxel_lens(true);
+    let src = filtered_file(LodKinds::BOTH.filtered())?;
+    for k in 0..4 {
+        let b = with_lod_area(&src, &|raw, entries| {
+            or_byte(raw, entries[k] + lens[k] + 23, 1);
+            Ok(())
+        })?;
+        refused_as(&b, Code::Rlod, &format!("R-LOD {k} byte 23"))?;
+    }
+    let src = filtered_file(LodKinds::RLOD.filtered())?;
+    clean(&src, "filtered R-LODs alone")?;
+    let b = with_lod_area(&src, &|raw, entries| {
+        or_byte(raw, entries[3] + 23, 0x80);
+        Ok(())
+    })?;
+    refused_as(&b, Code::Rlod, "R-LODs alone, byte 23")
+}
+
+#[test]
+fn footprint_words_that_say_full_are_valid() -> TestResult {
+    // Spec §5.1: a writer SHOULD leave bit 30 clear where every footprint is full; a file that
+    // stores them anyway is valid, and what follows the voxel is read after its words.
+    let src = filtered_file(LodKinds::BOTH.filtered())?;
+    let b = with_lod_area(&src, &|raw, entries| {
+        common::put_u32(raw, entries[1] + 4, 0xffff);
+        for k in 0..3 {
+            common::put_u32(raw, entries[3] + 24 + 4 * k, 0xffff_ffff);
+        }
+        Ok(())
+    })?;
+    clean(&b, "full footprints stored")?;
+    let r = open_bytes(&b, ReadOptions::default())?;
+    let block = r.read_block(0)?;
+    let t = block.treelets()?;
+    let mut got = Vec::new();
+    t.walk_lods(|_, _, _, e| {
+        if let (Some(v), Some(x)) = (e.voxel, e.rlod) {
+            got.push((v.face(5).1, e.voxel_len, x.offset));
+        }
+        Ok(())
+    })?;
+    // Every footprint now full, the stored lengths kept, each R-LOD found after its voxel.
+    let full = oocfmt::records::Footprint::FULL;
+    let want: Vec<_> = (0..4)
+        .map(|k| (full, filtered_voxel_lens(true)[k], 0.5 + k as f32 / 8.0))
+        .collect();
+    assert_eq!(got, want);
+    Ok(())
+}

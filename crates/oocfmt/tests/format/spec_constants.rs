@@ -173,9 +173,83 @@ fn rlod_table_matches_the_code() {
     for (name, bit) in [
         ("LOD_RLODS", header::INCOMPAT_LOD_RLODS),
         ("LOD_NO_VOXELS", header::INCOMPAT_LOD_NO_VOXELS),
+        ("LOD_FILTERED", header::INCOMPAT_LOD_FILTERED),
     ] {
         let row = format!("| incompatible | {} | `{name}` |", bit.trailing_zeros());
         assert!(s.contains(&row), "{row}");
+    }
+    // The first undefined bit follows the last known one.
+    let first_free = 64 - header::KNOWN_INCOMPAT.leading_zeros();
+    let row = format!("| incompatible | {first_free}–63 | — |");
+    assert!(s.contains(&row), "{row}");
+    // Coverage and shade where §6.4 puts them.
+    for (off, name) in [(19, "coverage"), (22, "shade"), (23, "reserved")] {
+        assert!(
+            rows.iter()
+                .any(|(o, n, f)| *o == off && *n == 1 && f == name),
+            "R-LOD byte {off} is not {name} in the spec"
+        );
+    }
+    let r = oocfmt::records::Rlod {
+        normal: [0.0, 0.0, 1.0],
+        offset: 0.0,
+        colour: [0; 3],
+        deviation_code: 0,
+        expansion_code: 0,
+        coverage: 0x19,
+        shade: 0x22,
+    };
+    let mut v = Vec::new();
+    r.encode_into(&mut v, true);
+    assert_eq!((v[19], v[22], v[23]), (0x19, 0x22, 0));
+}
+
+#[test]
+fn version_and_footprint_layout_match_the_spec() {
+    use oocfmt::records::{Footprint, Sample, Voxel};
+    let s = spec();
+    let title = format!(
+        "# The `.oocf` container, version {}.{}",
+        header::VERSION_MAJOR,
+        header::VERSION_MINOR
+    );
+    assert!(s.starts_with(&title), "{title}");
+    let minors: Vec<String> = (0..=header::VERSION_MINOR).map(|m| m.to_string()).collect();
+    let (last, rest) = minors.split_last().unwrap_or_else(|| panic!("no minor"));
+    let cell = format!("| minor | {} or {last} (§11) |", rest.join(", "));
+    assert!(s.contains(&cell), "{cell}");
+    // §5.1: the four voxel lengths, and where shade and coverage sit in a footprint.
+    let sample = Sample::pack([0.0, 0.0, 1.0], [1.0; 3]);
+    let f = Footprint {
+        shade: 0x12,
+        coverage: 0x34,
+    };
+    let lens = [
+        Voxel::single(sample),
+        Voxel::Single(sample, f),
+        Voxel::six([sample; 6]),
+        Voxel::Six([sample; 6], [f; 6]),
+    ]
+    .map(|v| {
+        let mut b = Vec::new();
+        v.encode_into(&mut b, true);
+        assert_eq!(b.len(), v.byte_len(true));
+        b.len()
+    });
+    let sentence = format!(
+        "So a voxel is {}, {}, {} or {} bytes.",
+        lens[0], lens[1], lens[2], lens[3]
+    );
+    assert!(s.contains(&sentence), "{sentence}");
+    let mut b = Vec::new();
+    Voxel::Single(sample, f).encode_into(&mut b, true);
+    assert_eq!(&b[4..8], &[0x12, 0x34, 0, 0]);
+    for row in [
+        "| 0–7  | shade *σ* |",
+        "| 8–15 | coverage *α* |",
+        "| 30    | empty / footprints |",
+    ] {
+        assert!(s.contains(row), "{row}");
     }
 }
 
@@ -184,7 +258,13 @@ fn rlod_table_matches_the_code() {
 #[test]
 fn codes_named_in_the_prose_exist() {
     let s = spec();
-    let features = ["PROXIES", "LOD_VOXELS", "LOD_RLODS", "LOD_NO_VOXELS"];
+    let features = [
+        "PROXIES",
+        "LOD_VOXELS",
+        "LOD_RLODS",
+        "LOD_NO_VOXELS",
+        "LOD_FILTERED",
+    ];
     let known: BTreeSet<&str> = Code::ALL.iter().map(|c| c.as_str()).collect();
     let mut named = BTreeSet::new();
     for piece in s.split('`').skip(1).step_by(2) {
