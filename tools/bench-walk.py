@@ -34,8 +34,10 @@ off or on) and --accuracy: per strategy the medians over the frames of the frame
 frame's rays, the cache's step and the look-ahead), the largest frame time, the spikes (frames
 over 1.5x the run's median), the misses (distinct blocks a frame wanted and did not find), the
 blocks loaded per frame (median and the largest burst), the frames that missed blocks, the share
-of coarse pixels and the accuracy (share of pixels equal to the full-detail reference: blocking
-cache, PoE 0); and an SVG plot of the per-frame accuracy and blocks loaded (--plot).
+of coarse pixels, the accuracy (share of pixels equal to full detail: blocking cache, PoE 0) and
+the error against the true picture (full detail at --reference-spp rays per pixel) on the
+model's pixels, beside the aliasing floor (full detail at one ray per pixel against the same
+reference) and the whole image's RMSE; and an SVG plot of the per-frame accuracy and blocks loaded (--plot).
 Standard library only.
 
     cargo build --release -p oocfmt-cli
@@ -109,7 +111,11 @@ def summarize(frames):
         "coarse_pct": 100 * statistics.median(f["coarse_pixels"] for f in frames) / rays,
         "accuracy_pct": 100 * statistics.median(f["accuracy"]["exact"] for f in frames),
         "min_accuracy_pct": 100 * min(f["accuracy"]["exact"] for f in frames),
-        "tolerance_pct": 100 * statistics.median(f["accuracy"]["within_tolerance"] for f in frames),
+        "model_rmse": statistics.median(f["accuracy"]["error"]["model"]["rmse"] for f in frames),
+        "floor_rmse": statistics.median(f["accuracy"]["floor"]["model"]["rmse"] for f in frames),
+        "model_bias": statistics.median(f["accuracy"]["error"]["model"]["bias"] for f in frames),
+        "model_ssim": statistics.median(f["accuracy"]["error"]["model"]["ssim"] for f in frames),
+        "whole_rmse": statistics.median(f["accuracy"]["error"]["whole"]["rmse"] for f in frames),
         "prefetched": sum(f.get("blocks_prefetched", 0) for f in frames),
         "prefetch_used": sum(f.get("blocks_prefetch_used", 0) for f in frames),
         "peak_mb": max(f["stats"]["cache"]["peak_bytes_resident"] for f in frames) / 2**20,
@@ -175,6 +181,7 @@ def compare_strategies(a, model, cams, common, size_mb):
         for mb in budgets:
             for label, flags in STRATEGIES:
                 extra = common + ["--cache-mb", str(mb), "--accuracy",
+                                  "--reference-spp", str(a.reference_spp),
                                   "--prefetch-mb", str(a.prefetch_mb)] + flags
                 name = f"s{mb}-{label.replace('+', '-')}"
                 runs[(mb, label)] = render_path(model, cams, work, name, extra)
@@ -182,10 +189,12 @@ def compare_strategies(a, model, cams, common, size_mb):
           f"{a.fetchers} fetchers, --prefetch-mb {a.prefetch_mb}; cold cache each run")
     print("ms: frame's rays + cache step + look-ahead; spikes: frames over 1.5x the run's median; missed: "
           "distinct blocks a frame wanted and did not find; loaded: blocks published after a frame; "
-          "accuracy: pixels equal to the full-detail reference (blocking, PoE 0)")
+          "acc%: pixels equal to full detail (blocking, PoE 0); RMSE, SSIM, bias: on the model's pixels "
+          f"(hit in either image) against full detail at {a.reference_spp} rays per pixel; floor: full detail "
+          "at 1 ray per pixel against the same reference; all: RMSE over the whole image (medians over the frames)")
     head = (f"{'MiB':>4} {'strategy':<25} {'med ms':>7} {'max ms':>7} {'spikes':>6} {'missed':>6} "
             f"{'loaded':>6} {'burst':>5} {'frames':>6} {'coarse%':>7} {'acc%':>6} {'min%':>6} "
-            f"{'tol%':>6} {'pf used':>9} {'peak':>6}")
+            f"{'RMSE':>6} {'floor':>6} {'SSIM':>6} {'bias':>6} {'all':>6} {'pf used':>9} {'peak':>6}")
     print(head)
     for (mb, label), frames in runs.items():
         s = summarize(frames)
@@ -193,11 +202,12 @@ def compare_strategies(a, model, cams, common, size_mb):
         print(f"{mb:>4} {label:<25} {s['median_ms']:7.1f} {s['max_ms']:7.1f} {s['spikes']:6} "
               f"{s['median_missed']:6.0f} {s['median_loaded']:6.0f} {s['max_loaded']:5} "
               f"{s['frames_missing']:6} {s['coarse_pct']:7.2f} {s['accuracy_pct']:6.2f} "
-              f"{s['min_accuracy_pct']:6.2f} {s['tolerance_pct']:6.2f} {pf:>9} {s['peak_mb']:6.1f}")
+              f"{s['min_accuracy_pct']:6.2f} {s['model_rmse']:6.2f} {s['floor_rmse']:6.2f} "
+              f"{s['model_ssim']:6.4f} {s['model_bias']:+6.2f} {s['whole_rmse']:6.2f} {pf:>9} {s['peak_mb']:6.1f}")
     print("frames: frames that missed blocks (of %d); pf used: prefetched blocks a later frame used / "
           "blocks prefetched; peak: most MiB held" % len(cams))
     if a.plot:
-        rows = [[(f"--cache-mb {mb}: accuracy", "pixels equal to the reference",
+        rows = [[(f"--cache-mb {mb}: accuracy", "pixels equal to full detail",
                   [(l, [f["accuracy"]["exact"] for f in runs[(mb, l)]]) for l, _ in STRATEGIES]),
                  (f"--cache-mb {mb}: blocks loaded per frame", "blocks",
                   [(l, [f["blocks_loaded"] for f in runs[(mb, l)]]) for l, _ in STRATEGIES])]
@@ -252,6 +262,8 @@ def main():
     p.add_argument("--strategy-mb", default="26,64", help="--strategies: the cache budgets, MiB")
     p.add_argument("--prefetch-mb", default="4", help="--strategies: the per-frame prefetch budget")
     p.add_argument("--plot", help="--strategies: write the per-frame plot to this SVG file")
+    p.add_argument("--reference-spp", type=int, default=16,
+                   help="--strategies: rays per pixel of the --accuracy reference")
     a = p.parse_args()
     require_binary()
     if a.nice:

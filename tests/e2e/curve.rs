@@ -1,6 +1,8 @@
 //! End-to-end tests of `oocfmt curve`: on a small generated scene the JSON has one row per
-//! (cache, PoE), PoE 0 reproduces the reference exactly (PSNR infinite, written as null), the
-//! plot and the contact sheet are valid files, bad flags exit 2.
+//! (cache, PoE), PoE 0 reproduces the aliasing floor exactly (full detail at one ray per pixel,
+//! measured against the supersampled reference), the whole image's error is the model's
+//! diluted by exactly the background's share, a one-ray reference is the floor itself (PSNR
+//! infinite, written as null), the plot and the contact sheet are valid files, bad flags exit 2.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::path::Path;
@@ -46,15 +48,31 @@ fn curve_writes_json_plot_and_sheet() {
             "curve.svg",
             "--sheet",
             "sheet.png",
+            "--reference-spp",
+            "4",
         ],
         d,
     );
     let out = stdout(&o);
-    assert!(out.contains("PSNR") && out.contains("inf"), "{out}");
+    assert!(
+        out.contains("PSNR") && out.contains("all RMSE") && out.contains("aliasing floor"),
+        "{out}"
+    );
 
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("curve.json")).unwrap()).unwrap();
-    assert_eq!(json["schema"], "oocfmt-curve/1");
+    assert_eq!(json["schema"], "oocfmt-curve/2");
+    assert_eq!(json["tolerance"], 8);
+    assert_eq!(json["reference"]["spp"], 4);
+    assert_eq!(json["reference"]["poe"], 0.0);
+    let floor = &json["floor"];
+    assert_eq!(floor["spp"], 1);
+    let fe = &floor["error"];
+    // Full detail at one ray per pixel is not the supersampled picture: aliasing shows on the
+    // model's edges and detail.
+    assert!(fe["model"]["rmse"].as_f64().unwrap() > 0.0, "{fe}");
+    assert!(fe["model"]["pixels"].as_u64().unwrap() > 0, "{fe}");
+    assert_eq!(fe["whole"]["pixels"], 64 * 48);
     let rows = json["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 6);
     let poes: Vec<f64> = rows.iter().map(|r| r["poe"].as_f64().unwrap()).collect();
@@ -68,27 +86,33 @@ fn curve_writes_json_plot_and_sheet() {
             .sum();
         assert_eq!(total, 64 * 48);
         let e = &r["error"];
-        let ssim = e["ssim"].as_f64().unwrap();
-        assert!(ssim <= 1.0 && ssim > -1.0, "{ssim}");
-        let within = e["within_tolerance"].as_f64().unwrap();
-        assert!((0.0..=1.0).contains(&within));
+        for region in ["model", "whole"] {
+            let g = &e[region];
+            let ssim = g["ssim"].as_f64().unwrap();
+            assert!(ssim <= 1.0 && ssim > -1.0, "{ssim}");
+            let within = g["within_tolerance"].as_f64().unwrap();
+            assert!((0.0..=1.0).contains(&within));
+            assert!(g["bias"].as_f64().unwrap().abs() < 255.0);
+            // A finite PSNR goes with a positive RMSE; identical regions only with none.
+            let rmse = g["rmse"].as_f64().unwrap();
+            assert_eq!(g["psnr_db"].is_null(), rmse == 0.0, "{r}");
+        }
+        assert_eq!(e["whole"]["pixels"], 64 * 48);
+        // Outside the model's pixels both images show the background, identically: the
+        // whole image's squared error is the model's, spread over more pixels.
+        let sse = |g: &serde_json::Value| {
+            g["rmse"].as_f64().unwrap().powi(2) * g["pixels"].as_f64().unwrap()
+        };
+        let (ms, ws) = (sse(&e["model"]), sse(&e["whole"]));
+        assert!((ms - ws).abs() <= 1e-9 * ms.max(1.0), "{e}");
         assert!(r["blocks_touched"].as_u64().unwrap() > 0);
         assert!(r["ms"].as_f64().unwrap() > 0.0);
         if r["poe"] == 0.0 {
-            // Full detail with every block loaded is the reference, bit for bit, whatever the
+            // Full detail with every block loaded is the floor, bit for bit, whatever the
             // cache once it is warm.
-            assert_eq!(e["rmse"], 0.0, "{r}");
-            assert!(e["psnr_db"].is_null(), "{r}");
-            assert_eq!(e["ssim"], 1.0);
-            assert_eq!(e["within_tolerance"], 1.0);
-            assert_eq!(e["depth"]["hit_miss_differ"], 0);
-            assert_eq!(e["depth"]["max_relative"], 0.0);
+            assert_eq!(e, fe, "{r}");
             assert_eq!(p["voxel"], 0);
-            assert_eq!(p, &json["reference"]["primary"]);
-        } else {
-            // A finite PSNR goes with a positive RMSE; identical images only with none.
-            let rmse = e["rmse"].as_f64().unwrap();
-            assert_eq!(e["psnr_db"].is_null(), rmse == 0.0, "{r}");
+            assert_eq!(p, &floor["primary"]);
         }
     }
     // At 16 pixels of error on a 48-pixel-high image the voxels show.
@@ -97,9 +121,54 @@ fn curve_writes_json_plot_and_sheet() {
     let svg = std::fs::read_to_string(d.join("curve.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
     assert!(svg.contains("poe 16"));
-    // Reference and three PoEs per row, one row per cache, each with its labels.
+    // Reference, floor and three PoEs per row, one row per cache, each with its labels over
+    // a 4x crop (the whole 64x48 image here: 256x192).
     let (w, h) = read_png(&d.join("sheet.png"));
-    assert!(w >= 4 * 64 && h >= 2 * 48, "{w}x{h}");
+    assert!(w >= 5 * 256 && h >= 2 * (48 + 192), "{w}x{h}");
+}
+
+#[test]
+fn a_one_ray_reference_is_the_floor_itself() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    converted_mandelbulb(d);
+    run_ok(
+        &[
+            "curve",
+            "mb.oocf",
+            "--size",
+            "48x36",
+            "--poe",
+            "0,4",
+            "--cache",
+            "blocking",
+            "--repeat",
+            "1",
+            "--reference-spp",
+            "1",
+            "--json",
+            "c.json",
+        ],
+        d,
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("c.json")).unwrap()).unwrap();
+    let fe = &json["floor"]["error"];
+    for region in ["model", "whole"] {
+        assert_eq!(fe[region]["rmse"], 0.0, "{fe}");
+        assert!(fe[region]["psnr_db"].is_null(), "{fe}");
+        assert_eq!(fe[region]["ssim"], 1.0);
+        assert_eq!(fe[region]["within_tolerance"], 1.0);
+        assert_eq!(fe[region]["bias"], 0.0);
+    }
+    assert_eq!(fe["depth"]["hit_miss_differ"], 0);
+    assert_eq!(json["reference"]["primary"], json["floor"]["primary"]);
+    let rows = json["rows"].as_array().unwrap();
+    assert_eq!(rows[0]["error"]["model"]["rmse"], 0.0);
+    // The model's pixels are those either image hits: PoE 4's voxels may cover more.
+    let pixels = |r: &serde_json::Value| r["error"]["model"]["pixels"].as_u64().unwrap();
+    assert!(pixels(&rows[1]) >= pixels(&rows[0]), "{rows:?}");
+    assert!(pixels(&rows[0]) > 0);
 }
 
 #[test]
@@ -129,6 +198,8 @@ fn curve_plots_png_and_walks_a_path() {
             "c.json",
             "--plot",
             "c.png",
+            "--reference-spp",
+            "2",
         ],
         d,
     );
@@ -142,7 +213,9 @@ fn curve_plots_png_and_walks_a_path() {
         .map(|k| rows[0]["primary"][k].as_u64().unwrap())
         .sum();
     assert_eq!(rays, 3 * 40 * 30);
-    assert_eq!(rows[0]["error"]["rmse"], 0.0);
+    // Over every frame: PoE 0 is the floor, and the floor is measured on all three.
+    assert_eq!(rows[0]["error"], json["floor"]["error"]);
+    assert_eq!(json["floor"]["error"]["whole"]["pixels"], 3 * 40 * 30);
     assert!(read_png(&d.join("c.png")).0 > 0);
 }
 
@@ -161,6 +234,8 @@ fn curve_rejects_bad_flags() {
         &["--cache", "async,async"],
         &["--plot", "curve.jpg"],
         &["--repeat", "0"],
+        &["--reference-spp", "0"],
+        &["--reference-spp", "257"],
         &["--size", "0x10"],
     ] {
         let mut args = vec!["curve", "mb.oocf"];

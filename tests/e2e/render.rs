@@ -175,6 +175,7 @@ fn render_usage_errors_exit_2() {
         &["render", "m.oocf", "-o", "x.png", "--prefetch-mb", "0"][..],
         &["render", "m.oocf", "-o", "x.png", "--prefetch-frames", "0"][..],
         &["render", "m.oocf", "-o", "x.png", "--accuracy"][..],
+        &["render", "m.oocf", "-o", "x.png", "--reference-spp", "4"][..],
     ] {
         let o = oocfmt(args, d);
         assert_eq!(o.status.code(), Some(2), "{args:?}");
@@ -319,12 +320,47 @@ fn render_path_accuracy_is_full_for_blocking_at_poe_0_and_partial_for_a_cold_asy
     let blocking = walk_figures(
         d,
         "blocking",
-        &["--cache", "blocking", "--poe", "0", "--accuracy"],
+        &[
+            "--cache",
+            "blocking",
+            "--poe",
+            "0",
+            "--accuracy",
+            "--reference-spp",
+            "4",
+        ],
     );
     for f in &blocking {
+        // The frames are full detail: equal to it, and exactly as far from the supersampled
+        // reference as the floor.
         assert_eq!(accuracy(f, "exact"), 1.0, "{f}");
-        assert_eq!(accuracy(f, "within_tolerance"), 1.0, "{f}");
-        assert_eq!(f["accuracy"]["tolerance"].as_u64(), Some(8));
+        let a = &f["accuracy"];
+        assert_eq!(a["error"], a["floor"], "{f}");
+        assert_eq!(a["tolerance"].as_u64(), Some(8));
+        assert_eq!(a["reference_spp"].as_u64(), Some(4));
+        assert_eq!(a["error"]["whole"]["pixels"], 32 * 24);
+        assert!(a["error"]["model"]["pixels"].as_u64().unwrap() > 0, "{f}");
+        assert!(a["error"]["model"]["rmse"].as_f64().unwrap() > 0.0, "{f}");
+    }
+    // A one-ray reference is full detail itself.
+    let one = walk_figures(
+        d,
+        "one",
+        &[
+            "--cache",
+            "blocking",
+            "--poe",
+            "0",
+            "--accuracy",
+            "--reference-spp",
+            "1",
+        ],
+    );
+    for f in &one {
+        let e = &f["accuracy"]["error"];
+        assert_eq!(e["model"]["rmse"], 0.0, "{f}");
+        assert_eq!(e["whole"]["within_tolerance"], 1.0, "{f}");
+        assert_eq!(e["hit_miss_differ"], 0, "{f}");
     }
     let cold = walk_figures(
         d,
@@ -335,6 +371,8 @@ fn render_path_accuracy_is_full_for_blocking_at_poe_0_and_partial_for_a_cold_asy
             "--accuracy",
             "--accuracy-tolerance",
             "3",
+            "--reference-spp",
+            "2",
             "--eviction",
             "second-chance",
             "--fetch-order",
@@ -345,8 +383,10 @@ fn render_path_accuracy_is_full_for_blocking_at_poe_0_and_partial_for_a_cold_asy
     );
     let first = &cold[0];
     assert!(accuracy(first, "exact") < 1.0, "{first}");
-    assert!(accuracy(first, "within_tolerance") >= accuracy(first, "exact"));
-    assert_eq!(first["accuracy"]["tolerance"].as_u64(), Some(3));
+    // A cold first frame is not full detail, so its error is not the floor's.
+    let a = &first["accuracy"];
+    assert_ne!(a["error"], a["floor"], "{first}");
+    assert_eq!(a["tolerance"].as_u64(), Some(3));
     let cache = &cold[2]["stats"]["cache"];
     assert_eq!(cache["eviction"], "second-chance");
     assert_eq!(cache["fetch_order"], "wald");

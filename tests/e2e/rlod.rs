@@ -15,7 +15,8 @@ fn json(path: &Path) -> serde_json::Value {
 }
 
 /// `curve --lod voxel,rlod --poe 0,2` on `model` with the blocking cache: its rows.
-fn curve_rows(d: &Path, model: &str) -> Vec<serde_json::Value> {
+/// `curve --json` of voxels and R-LODs at PoE 0 and 2 against a 4-ray reference.
+fn curve(d: &Path, model: &str) -> serde_json::Value {
     let js = format!("{model}.curve.json");
     run_ok(
         &[
@@ -31,12 +32,18 @@ fn curve_rows(d: &Path, model: &str) -> Vec<serde_json::Value> {
             "160x120",
             "--repeat",
             "1",
+            "--reference-spp",
+            "4",
             "--json",
             &js,
         ],
         d,
     );
-    json(&d.join(&js))["rows"].as_array().unwrap().clone()
+    json(&d.join(&js))
+}
+
+fn curve_rows(c: &serde_json::Value) -> Vec<serde_json::Value> {
+    c["rows"].as_array().unwrap().clone()
 }
 
 fn find_row<'a>(rows: &'a [serde_json::Value], lod: &str, poe: f64) -> &'a serde_json::Value {
@@ -196,14 +203,15 @@ fn rlods_build_out_of_core() {
     let mut rmse = Vec::new();
     for name in ["in-core", "chunked"] {
         let out = format!("{name}.oocf");
-        let rows = curve_rows(d, &out);
+        let c = curve(d, &out);
+        let rows = curve_rows(&c);
         let row = |lod: &str, poe: f64| find_row(&rows, lod, poe);
         for lod in ["voxel", "rlod"] {
-            assert_eq!(row(lod, 0.0)["error"]["rmse"], 0.0, "{name} {lod}");
+            assert_eq!(row(lod, 0.0)["error"], c["floor"]["error"], "{name} {lod}");
         }
         let r = row("rlod", 2.0);
         assert!(r["primary"]["rlod"].as_u64().unwrap() > 0, "{name}: {r}");
-        rmse.push(r["error"]["rmse"].as_f64().unwrap());
+        rmse.push(r["error"]["model"]["rmse"].as_f64().unwrap());
     }
     // The trees differ above the chunks (median splits against SAH), so the images do too,
     // but not by much.
@@ -257,28 +265,33 @@ fn rlod_error_at_poe_2_is_bounded_next_to_voxels() {
     let d = dir.path();
     gen(d, "mandelbulb", "60000", "mb.obj");
     convert(d, "both", "mb.oocf");
-    let rows = curve_rows(d, "mb.oocf");
+    let c = curve(d, "mb.oocf");
+    let rows = curve_rows(&c);
     let row = |lod: &str, poe: f64| find_row(&rows, lod, poe);
     for lod in ["voxel", "rlod"] {
-        assert_eq!(row(lod, 0.0)["error"]["rmse"], 0.0, "{lod}");
+        assert_eq!(row(lod, 0.0)["error"], c["floor"]["error"], "{lod}");
     }
     let (v, r) = (row("voxel", 2.0), row("rlod", 2.0));
     assert!(r["primary"]["rlod"].as_u64().unwrap() > 0, "{r}");
     assert_eq!(r["primary"]["voxel"], 0, "{r}");
     assert_eq!(v["primary"]["rlod"], 0, "{v}");
-    let (ve, re) = (&v["error"], &r["error"]);
+    // On the model's pixels, against full detail at 4 rays per pixel.
+    let (ve, re) = (&v["error"]["model"], &r["error"]["model"]);
     let rmse = |e: &serde_json::Value| e["rmse"].as_f64().unwrap();
     // R-LODs are chosen by a larger error radius than voxels (the deviation folded in) and
-    // end rays on the surface's plane rather than on the cell's face.
-    // Measured: RMSE 11.9 against 17.1 for voxels, 86 % of pixels within 8 levels against 84 %.
-    assert!(rmse(re) < 20.0, "R-LOD RMSE {re}");
+    // end rays on the surface's plane rather than on the cell's face. Measured (point-sampled
+    // records, before pre-filtering): RMSE 29.3 against 39.1 for voxels and 11.8 for the
+    // aliasing floor, SSIM 0.856 against 0.665, 8.8 % of pixels within 8 levels against 5.3 %.
+    assert!(rmse(re) < 40.0, "R-LOD RMSE {re}");
     assert!(rmse(re) <= 1.5 * rmse(ve) + 1.0, "R-LOD {re} vs voxel {ve}");
-    let within = |e: &serde_json::Value| e["within_tolerance"].as_f64().unwrap();
+    let ssim = |e: &serde_json::Value| e["ssim"].as_f64().unwrap();
     assert!(
-        within(re) > 0.75 && within(re) >= within(ve) - 0.05,
+        ssim(re) > 0.8 && ssim(re) >= ssim(ve) - 0.02,
         "{re} vs {ve}"
     );
+    let within = |e: &serde_json::Value| e["within_tolerance"].as_f64().unwrap();
+    assert!(within(re) >= within(ve) - 0.05, "{re} vs {ve}");
     // Planes never leave a pixel empty that full detail fills, or only a few.
-    let differ = |e: &serde_json::Value| e["depth"]["hit_miss_differ"].as_u64().unwrap();
-    assert!(differ(re) <= differ(ve) + 20, "{re} vs {ve}");
+    let differ = |e: &serde_json::Value| e["error"]["depth"]["hit_miss_differ"].as_u64().unwrap();
+    assert!(differ(r) <= differ(v) + 20, "{r} vs {v}");
 }

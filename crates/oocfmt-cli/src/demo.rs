@@ -1,7 +1,8 @@
 //! `oocfmt demo`: the README's first command, the whole pipeline on a built-in scene: generate a
 //! Mandelbulb, convert it, inspect and deep-verify the container, and render it at full detail
-//! and at a level of detail, printing where everything is, what it cost and what the LOD
-//! image's error is.
+//! and at a level of detail, printing where everything is, what it cost and how far each image
+//! is from the true picture (full detail supersampled), on the model's pixels and on the whole
+//! image.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -13,10 +14,11 @@ use oocfmt_build::convert::{convert, ConvertOptions};
 use oocfmt_build::kdtree::KdBuildOptions;
 use oocfmt_build::layout::LayoutOptions;
 use oocfmt_scenes::mandelbulb::{self, MandelbulbOptions};
-use oocfmt_trace::compare::compare;
+use oocfmt_trace::compare::{compare, ImageError};
 use oocfmt_trace::output::write_png;
 use oocfmt_trace::{render, BlockingCache, Camera, FrameStats, RenderOptions, Scene};
 
+use crate::accuracy::{self, db, reference_options, region_line};
 use crate::args::parse_codec;
 use crate::error::{CliError, CliResult};
 use crate::out::{out, outln};
@@ -45,6 +47,10 @@ pub struct Args {
     /// The pixels of error of the level-of-detail image, compared with full detail
     #[arg(long, default_value_t = 2.0)]
     pub poe: f32,
+    /// Rays per pixel of the reference both images are measured against (full detail, at
+    /// the stratified points of `render --spp`)
+    #[arg(long, default_value_t = accuracy::DEFAULT_REFERENCE_SPP, value_parser = clap::value_parser!(u32).range(1..=i64::from(accuracy::MAX_REFERENCE_SPP)))]
+    pub reference_spp: u32,
 }
 
 pub fn run(a: &Args) -> CliResult {
@@ -75,7 +81,7 @@ pub fn run(a: &Args) -> CliResult {
         return Ok(1);
     }
     outln!()?;
-    render_both(&path, &a.out, a.width, a.poe)?;
+    render_both(&path, &a.out, (a.width, a.poe, a.reference_spp))?;
     outln!(
         "\nnext: oocfmt render {0} -o view.png --poe 1 --eye X,Y,Z; oocfmt inspect {0}",
         path.display()
@@ -165,9 +171,14 @@ fn verify_deep(path: &Path, file_length: u64) -> Result<bool, CliError> {
     Ok(report.valid)
 }
 
-/// Renders the default view at full detail and at `poe`, writes both PNGs, and prints the
-/// figures of each and the error of the second against the first.
-fn render_both(model: &Path, out: &Path, width: u32, poe: f32) -> Result<(), CliError> {
+/// Renders the default view `width` pixels wide at full detail and at `poe`, writes both PNGs
+/// and the reference's (full detail at `spp` rays per pixel), and prints the figures of each
+/// and their error against the reference.
+fn render_both(
+    model: &Path,
+    out: &Path,
+    (width, poe, spp): (u32, f32, u32),
+) -> Result<(), CliError> {
     let scene = Arc::new(Scene::open(model)?);
     let m = scene.metadata();
     let camera = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, width, width * 3 / 4);
@@ -187,19 +198,47 @@ fn render_both(model: &Path, out: &Path, width: u32, poe: f32) -> Result<(), Cli
         print_frame(&png, &stats)?;
         images.push(image);
     }
-    if let [reference, coarse] = &images[..] {
-        let e = compare(reference, coarse, 8)?;
-        let pixels = reference.depth.len().max(1) as f64;
+    let cache = BlockingCache::new(Arc::clone(&scene), usize::MAX);
+    let opts = reference_options(&RenderOptions::default(), spp);
+    let (reference, stats) = render(&scene, &cache, &camera, &opts)?;
+    let png = out.join("mandelbulb-reference.png");
+    write_png(&png, reference.width, reference.height, &reference.rgb)?;
+    outln!(
+        "reference  {} (--poe 0 --spp {spp}, cold): {:.1} ms",
+        png.display(),
+        stats.ms
+    )?;
+    if let [full, coarse] = &images[..] {
+        let pixels = reference.depth.len();
         outln!(
-            "error      --poe {poe} against --poe 0: RMSE {:.2} of 255, PSNR {:.1} dB, SSIM {:.4}, {:.2} % of pixels within 8 levels per channel, {:.3} % of hits and misses differ",
-            e.rmse,
-            e.psnr_db,
-            e.ssim,
-            100.0 * e.within_tolerance,
-            100.0 * e.depth.hit_miss_differ as f64 / pixels
+            "error      against the reference, on the model's pixels (those that hit in either \
+             image), and on all {pixels} pixels:"
+        )?;
+        print_error(
+            "--poe 0",
+            " (full detail, 1 ray per pixel: the aliasing floor)",
+            &compare(&reference, full, 8)?,
+        )?;
+        print_error(
+            &format!("--poe {poe}"),
+            "",
+            &compare(&reference, coarse, 8)?,
         )?;
     }
     Ok(())
+}
+
+/// One image's line of error figures.
+fn print_error(name: &str, note: &str, e: &ImageError) -> Result<(), CliError> {
+    outln!(
+        "  {name}{note}\n    model, {} pixels: {}\n    whole image: RMSE {:.2}, PSNR {} dB; \
+         {} pixels hit in one image and miss in the other",
+        e.model.pixels,
+        region_line(&e.model, e.tolerance),
+        e.whole.rmse,
+        db(e.whole.psnr_db),
+        e.depth.hit_miss_differ
+    )
 }
 
 fn print_frame(png: &Path, s: &FrameStats) -> Result<(), CliError> {

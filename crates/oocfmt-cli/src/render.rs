@@ -97,15 +97,21 @@ pub struct Args {
     /// Frames ahead that look-ahead prefetching predicts and probes (each one)
     #[arg(long, default_value_t = DEFAULT_FRAMES_AHEAD, value_parser = clap::value_parser!(u32).range(1..=16))]
     pub prefetch_frames: u32,
-    /// Walkthroughs: report per frame the share of pixels equal to the full-detail reference
-    /// (the same camera rendered with --cache blocking --poe 0 after the walkthrough, so its
-    /// time does not help the walkthrough's fetchers), exactly and within
-    /// --accuracy-tolerance
+    /// Walkthroughs: measure each frame against the true picture, the same camera at full
+    /// detail with --reference-spp rays per pixel (--cache blocking --poe 0, rendered after
+    /// the walkthrough so its time does not help the walkthrough's fetchers): RMSE, PSNR,
+    /// SSIM, share within --accuracy-tolerance and luma bias on the model's pixels (those
+    /// that hit in either image) and on the whole image; beside it the aliasing floor (full
+    /// detail at the frames' own --spp against the same reference) and the share of pixels
+    /// equal to that full-detail image
     #[arg(long, requires = "path")]
     pub accuracy: bool,
     /// Levels of 255 each channel may differ by for a pixel to count as within tolerance
     #[arg(long, default_value_t = 8)]
     pub accuracy_tolerance: u8,
+    /// Rays per pixel of the --accuracy reference, at the stratified points of --spp
+    #[arg(long, default_value_t = accuracy::DEFAULT_REFERENCE_SPP, value_parser = clap::value_parser!(u32).range(1..=i64::from(accuracy::MAX_REFERENCE_SPP)), requires = "accuracy")]
+    pub reference_spp: u32,
     /// A walkthrough: a JSON list of cameras [{"eye": [x,y,z], "look_at": [x,y,z], "up"?: ..,
     /// "fov_y"?: ..}, ...] or {"keyframes": [cameras], "frames": N}; renders numbered PNGs
     /// (out.png -> out-0000.png, ...) with one cache kept across the frames, and figures per
@@ -331,7 +337,7 @@ fn walkthrough(
     let prefetch = a.prefetch.is_on().then_some(a.prefetch_frames);
     let mut walk = Walkthrough::new(scene, cache, opts, prefetch)?;
     let mut records = Vec::with_capacity(cameras.len());
-    let mut files = Vec::with_capacity(cameras.len());
+    let mut kept = Vec::new();
     for camera in cameras {
         let f = walk.frame(camera)?;
         let file = walk::frame_file(&a.output, f.index);
@@ -341,13 +347,15 @@ fn walkthrough(
             write_pfm(&dfile, f.image.width, f.image.height, &f.image.depth)?;
         }
         warn_missing(&f.new_missing);
+        if a.accuracy {
+            kept.push(accuracy::Kept::new(&f.image, &file));
+        }
         let record = FrameRecord::new(f, &file, pinned_cores);
         print_frame(&record, walk.prefetching())?;
         records.push(record);
-        files.push(file);
     }
     if a.accuracy {
-        report_accuracy(a, scene, cameras, &files, &opts, &mut records)?;
+        report_accuracy(a, scene, cameras, &kept, &opts, &mut records)?;
     }
     if let Some(s) = &a.stats_json {
         write_json(s, &records)?;
@@ -388,13 +396,13 @@ fn print_frame(r: &FrameRecord, prefetching: bool) -> Result<(), CliError> {
     )
 }
 
-/// `--accuracy`: each frame against its full-detail reference, a line per frame and the
-/// median and minimum; the figures go into `records`.
+/// `--accuracy`: each frame against the supersampled reference, a line per frame and the
+/// medians; the figures go into `records`.
 fn report_accuracy(
     a: &Args,
     scene: &Arc<Scene>,
     cameras: &[Camera],
-    files: &[PathBuf],
+    kept: &[accuracy::Kept],
     opts: &RenderOptions,
     records: &mut [FrameRecord],
 ) -> Result<(), CliError> {
@@ -402,32 +410,56 @@ fn report_accuracy(
     let measured = accuracy::measure(
         scene,
         cameras,
-        files,
+        kept,
         opts,
         budget_bytes(a.cache_mb),
-        tolerance,
+        accuracy::Against {
+            reference_spp: a.reference_spp,
+            tolerance,
+        },
+    )?;
+    outln!(
+        "accuracy against full detail at {} rays per pixel (PoE 0, blocking cache); model: the \
+         pixels that hit in either image; floor: full detail at --spp {} against the same \
+         reference",
+        a.reference_spp,
+        opts.spp
     )?;
     for (f, m) in records.iter_mut().zip(measured) {
+        let e = &m.error;
         outln!(
-            "accuracy {:4}: {:6.2} % of pixels equal to the full-detail reference, {:6.2} % \
-             within {tolerance}",
+            "accuracy {:4}: model {} px: {}; whole image RMSE {:.2}, PSNR {} dB; floor RMSE \
+             {:.2} on the model; {} hit/miss differ; {:.2} % equal to full detail",
             f.frame,
-            100.0 * m.exact,
-            100.0 * m.within_tolerance
+            e.model.pixels,
+            accuracy::region_line(&e.model, tolerance),
+            e.whole.rmse,
+            accuracy::db(e.whole.psnr_db),
+            m.floor.model.rmse,
+            e.hit_miss_differ,
+            100.0 * m.exact
         )?;
         f.accuracy = Some(m);
     }
-    let mut exact: Vec<f64> = records
-        .iter()
-        .filter_map(|f| f.accuracy)
-        .map(|m| m.exact)
-        .collect();
-    exact.sort_by(f64::total_cmp);
-    if let Some(min) = exact.first() {
+    let median = |k: fn(&Accuracy) -> f64| {
+        let mut v: Vec<f64> = records
+            .iter()
+            .filter_map(|f| f.accuracy.as_ref().map(k))
+            .collect();
+        v.sort_by(f64::total_cmp);
+        (median_sorted(&v), v.first().copied())
+    };
+    if let (rmse, Some(_)) = median(|m| m.error.model.rmse) {
+        let (floor, _) = median(|m| m.floor.model.rmse);
+        let (bias, _) = median(|m| m.error.model.bias);
+        let (ssim, _) = median(|m| m.error.model.ssim);
+        let (exact, min_exact) = median(|m| m.exact);
         outln!(
-            "accuracy: median {:.2} %, minimum {:.2} % of pixels equal to the reference",
-            100.0 * median_sorted(&exact),
-            100.0 * min
+            "accuracy: medians over the frames on the model: RMSE {rmse:.2} (aliasing floor \
+             {floor:.2}), SSIM {ssim:.4}, bias {bias:+.2}; {:.2} % of pixels equal to full \
+             detail (minimum {:.2} %)",
+            100.0 * exact,
+            100.0 * min_exact.unwrap_or(0.0)
         )?;
     }
     Ok(())
@@ -441,7 +473,7 @@ struct FrameRecord {
     file: String,
     #[serde(flatten)]
     figures: FrameFigures,
-    /// With --accuracy: the share of pixels equal to the full-detail reference.
+    /// With --accuracy: the error against the supersampled reference, and the floor's.
     #[serde(skip_serializing_if = "Option::is_none")]
     accuracy: Option<Accuracy>,
     missing_blocks: usize,

@@ -1,7 +1,9 @@
 //! `oocfmt curve`: speed against error. Renders one view (or a walkthrough) at a list of
 //! pixels-of-error values with each asked-for cache, warm, and compares every image with the
-//! full-detail reference (PoE 0, blocking cache, everything loaded): a table, JSON, a plot of
-//! frame time against error and a contact sheet of the images.
+//! true picture: full detail supersampled (PoE 0, `--reference-spp` rays per pixel, blocking
+//! cache, everything loaded), on the model's pixels and on the whole image. Full detail at one
+//! ray per pixel is measured against it too: the floor that aliasing sets. A table, JSON, a
+//! plot of error against frame time and a contact sheet of the images with zoomed crops.
 
 mod plot;
 mod sheet;
@@ -20,6 +22,7 @@ use oocfmt_trace::render::Endings;
 use oocfmt_trace::session::{self, frame, Cache, CacheKind};
 use oocfmt_trace::{BlockingCache, Camera, Image, RenderOptions, Scene};
 
+use crate::accuracy::{self, db, reference_options};
 use crate::args::{self, budget_bytes, use_threads, CacheArg, LodArg, View};
 use crate::error::{CliError, CliResult};
 use crate::out::outln;
@@ -27,7 +30,7 @@ use crate::render::{settle, warn_missing, write_json};
 use touched::Touched;
 
 /// The JSON schema of `--json`.
-pub const SCHEMA: &str = "oocfmt-curve/1";
+pub const SCHEMA: &str = "oocfmt-curve/2";
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -59,6 +62,10 @@ pub struct Args {
     /// by at most this many levels of 255
     #[arg(long, default_value_t = 8)]
     pub tolerance: u8,
+    /// Rays per pixel of the reference (full detail, at the stratified points of `render
+    /// --spp`); the aliasing floor is full detail at one
+    #[arg(long, default_value_t = accuracy::DEFAULT_REFERENCE_SPP, value_parser = clap::value_parser!(u32).range(1..=i64::from(accuracy::MAX_REFERENCE_SPP)))]
+    pub reference_spp: u32,
     /// Memory for decoded blocks per cache, in MiB (the reference's cache is unbounded)
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
     pub cache_mb: u64,
@@ -68,15 +75,16 @@ pub struct Args {
     /// Async cache: block levels read ahead (as for `render`)
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_READ_AHEAD, value_parser = clap::value_parser!(u8).range(0..=16))]
     pub read_ahead: u8,
-    /// Write the figures as JSON (schema `oocfmt-curve/1`) to this file
+    /// Write the figures as JSON (schema `oocfmt-curve/2`, docs/cli.md) to this file
     #[arg(long)]
     pub json: Option<PathBuf>,
-    /// Plot frame time against RMSE, one point per PoE and one series per cache: FILE.svg or
-    /// FILE.png
+    /// Plot the RMSE on the model's pixels against frame time, one point per PoE and one series
+    /// per cache, the aliasing floor a horizontal line: FILE.svg or FILE.png
     #[arg(long, value_parser = parse_plot_path)]
     pub plot: Option<PathBuf>,
-    /// Write a contact sheet PNG: the reference and every PoE's image side by side, labelled,
-    /// one row per cache
+    /// Write a contact sheet PNG: the reference, the aliasing floor and every PoE's image side
+    /// by side, labelled, each over a 4x crop of one region at the model's centre; one row per
+    /// cache
     #[arg(long)]
     pub sheet: Option<PathBuf>,
     /// Render threads (default: all cores)
@@ -154,17 +162,32 @@ struct Curve<'a> {
     repeat: u32,
     threads: usize,
     cache_mb: u64,
-    /// The reference: PoE 0, blocking cache without a budget.
+    /// The tolerance of every `within_tolerance`.
+    tolerance: u8,
+    /// The reference: PoE 0, `spp` rays per pixel, blocking cache without a budget.
     reference: Reference,
+    /// Full detail at one ray per pixel against the reference: the aliasing floor.
+    floor: Floor,
     rows: &'a [Row],
 }
 
+/// How a full-detail image was rendered (once per camera, cold, blocking cache).
 #[derive(Serialize)]
 struct Reference {
     cache: &'static str,
     poe: f32,
+    spp: u32,
+    /// Time per camera of the cold frame.
     ms: f64,
+    /// How the centre rays ended.
     primary: Endings,
+}
+
+#[derive(Serialize)]
+struct Floor {
+    #[serde(flatten)]
+    render: Reference,
+    error: ImageError,
 }
 
 /// A measurement's images of the first camera, for the sheet.
@@ -173,7 +196,8 @@ pub struct Shot {
     pub cache: String,
     pub poe: f32,
     pub ms: f64,
-    pub psnr_db: f64,
+    /// The RMSE on the model's pixels.
+    pub rmse: f64,
     pub image: Image,
 }
 
@@ -209,7 +233,8 @@ pub fn run(a: &Args) -> CliResult {
         // A container mmap cannot map is refused before any rendering.
         open_cache(a, None, CacheKind::Mmap, None)?;
     }
-    let (references, reference) = render_reference(&scene, &cameras)?;
+    let full = render_full_detail(&scene, &cameras, a.reference_spp, a.tolerance)?;
+    let references = &full.references;
     let mut rows = Vec::new();
     let mut shots = Vec::new();
     for (lod, lod_scene) in &scenes {
@@ -219,7 +244,7 @@ pub fn run(a: &Args) -> CliResult {
                 let kind = CacheKind::from(kind);
                 let (scene, cache) = open_cache(a, Some(Arc::clone(lod_scene)), kind, Some(*lod))?;
                 let (row, image) =
-                    measure(a, &scene, &cache, (kind, *lod), poe, &cameras, &references)?;
+                    measure(a, &scene, &cache, (kind, *lod), poe, &cameras, references)?;
                 shots.push(Shot {
                     cache: if scenes.len() > 1 {
                         format!("{} {}", row.cache, row.lod)
@@ -228,14 +253,16 @@ pub fn run(a: &Args) -> CliResult {
                     },
                     poe,
                     ms: row.ms,
-                    psnr_db: row.error.psnr_db,
+                    rmse: row.error.model.rmse,
                     image,
                 });
                 rows.push(row);
             }
         }
     }
-    print_table(a, &cameras, &reference, &rows)?;
+    print_table(a, &cameras, &full, &rows)?;
+    let first_floor = full.first_floor;
+    let first_reference = full.references.into_iter().next();
     let curve = Curve {
         schema: SCHEMA,
         model: a.model.display().to_string(),
@@ -245,10 +272,16 @@ pub fn run(a: &Args) -> CliResult {
         repeat: a.repeat,
         threads: rayon::current_num_threads(),
         cache_mb: a.cache_mb,
-        reference,
+        tolerance: a.tolerance,
+        reference: full.reference,
+        floor: full.floor,
         rows: &rows,
     };
-    write_files(a, &curve, references.first(), &shots)?;
+    let sheet = match (first_reference, first_floor) {
+        (Some(reference), Some(floor)) => Some(sheet::Fixed { reference, floor }),
+        _ => None,
+    };
+    write_files(a, &curve, sheet.as_ref(), &shots)?;
     Ok(0)
 }
 
@@ -298,42 +331,84 @@ fn open_cache(
 fn write_files(
     a: &Args,
     curve: &Curve<'_>,
-    reference: Option<&Image>,
+    fixed: Option<&sheet::Fixed>,
     shots: &[Shot],
 ) -> Result<(), CliError> {
     if let Some(p) = &a.json {
         write_json(p, curve)?;
     }
     if let Some(p) = &a.plot {
-        plot::write(p, &a.model, curve.rows)?;
+        plot::write(p, &a.model, curve.rows, curve.floor.error.model.rmse)?;
     }
-    if let (Some(p), Some(r)) = (&a.sheet, reference) {
-        sheet::write(p, r, shots)?;
+    if let (Some(p), Some(f)) = (&a.sheet, fixed) {
+        sheet::write(
+            p,
+            f,
+            (curve.reference.spp, curve.floor.error.model.rmse),
+            shots,
+        )?;
     }
     Ok(())
 }
 
-/// The full-detail images of `cameras`: PoE 0 with a blocking cache that keeps every block.
-fn render_reference(
+/// The full-detail renders of the cameras: the references and the floor's figures.
+struct FullDetail {
+    /// Per camera, the reference image.
+    references: Vec<Image>,
+    reference: Reference,
+    floor: Floor,
+    /// The first camera's floor image, for the sheet.
+    first_floor: Option<Image>,
+}
+
+/// Renders each camera at full detail with a blocking cache that keeps every block: the
+/// reference at `spp` rays per pixel, and at one ray per pixel the floor, measured against it
+/// at once (only the first camera's floor image is kept).
+fn render_full_detail(
     scene: &Arc<Scene>,
     cameras: &[Camera],
-) -> Result<(Vec<Image>, Reference), CliError> {
+    spp: u32,
+    tolerance: u8,
+) -> Result<FullDetail, CliError> {
     let cache = BlockingCache::new(Arc::clone(scene), usize::MAX);
-    let opts = RenderOptions::default();
-    let mut images = Vec::with_capacity(cameras.len());
-    let mut reference = Reference {
+    let floor_opts = RenderOptions::default();
+    let reference_opts = reference_options(&floor_opts, spp);
+    let blank = |spp| Reference {
         cache: "blocking",
         poe: 0.0,
+        spp,
         ms: 0.0,
         primary: Endings::default(),
     };
+    let (mut reference, mut floor) = (blank(spp), blank(floor_opts.spp));
+    let mut references = Vec::with_capacity(cameras.len());
+    let mut first_floor = None;
+    let mut acc = Accumulator::new(tolerance);
     for camera in cameras {
-        let session::Frame { image, stats, .. } = frame(scene, &cache, camera, &opts)?;
-        add_endings(&mut reference.primary, &stats.primary);
-        reference.ms += stats.ms;
-        images.push(image);
+        let r = frame(scene, &cache, camera, &reference_opts)?;
+        add_endings(&mut reference.primary, &r.stats.primary);
+        reference.ms += r.stats.ms;
+        let f = frame(scene, &cache, camera, &floor_opts)?;
+        add_endings(&mut floor.primary, &f.stats.primary);
+        floor.ms += f.stats.ms;
+        acc.add(&r.image, &f.image)?;
+        references.push(r.image);
+        if first_floor.is_none() {
+            first_floor = Some(f.image);
+        }
     }
-    Ok((images, reference))
+    let n = cameras.len().max(1) as f64;
+    reference.ms /= n;
+    floor.ms /= n;
+    Ok(FullDetail {
+        references,
+        reference,
+        floor: Floor {
+            render: floor,
+            error: acc.finish(),
+        },
+        first_floor,
+    })
 }
 
 fn add_endings(sum: &mut Endings, e: &Endings) {
@@ -415,63 +490,118 @@ fn measure(
     Ok((row, first))
 }
 
-/// A PSNR for people: `inf` for identical images.
-fn db(psnr: f64) -> String {
-    if psnr.is_finite() {
-        format!("{psnr:.1}")
-    } else {
-        "inf".to_string()
-    }
+/// The speed columns of the table, and the width they take.
+const SPEED_HEADER: [&str; 13] = [
+    "cache",
+    "lod",
+    "poe",
+    "ms",
+    "Mrays/s",
+    "nodes/ray",
+    "WS MiB",
+    "blocks",
+    "tri%",
+    "voxel%",
+    "rlod%",
+    "proxy%",
+    "miss%",
+];
+
+fn speed_header() -> String {
+    let [c, l, p, ms, mr, n, ws, b, t, v, r, x, m] = SPEED_HEADER;
+    format!("{c:<8} {l:<5} {p:>5} {ms:>9} {mr:>8} {n:>9} {ws:>8} {b:>7} {t:>6} {v:>6} {r:>6} {x:>6} {m:>6}")
+}
+
+fn speed_columns(r: &Row) -> String {
+    let p = &r.primary;
+    let n = (p.triangle + p.voxel + p.rlod + p.proxy + p.miss).max(1) as f64;
+    let pct = |x: u64| 100.0 * x as f64 / n;
+    format!(
+        "{:<8} {:<5} {:>5} {:>9.2} {:>8.2} {:>9.1} {:>8.1} {:>7} {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>6.1}",
+        r.cache,
+        r.lod,
+        r.poe,
+        r.ms,
+        r.rays_per_second / 1e6,
+        r.nodes_per_ray,
+        r.working_set_mb,
+        r.blocks_touched,
+        pct(p.triangle),
+        pct(p.voxel),
+        pct(p.rlod),
+        pct(p.proxy),
+        pct(p.miss),
+    )
+}
+
+fn error_header(tolerance: u8) -> String {
+    format!(
+        "{:>7} {:>6} {:>7} {:>7} {:>6} {:>8} {:>8} {:>8} {:>9} {:>9}",
+        "RMSE",
+        "PSNR",
+        "SSIM",
+        format!("<={tolerance}%"),
+        "bias",
+        "all RMSE",
+        "all PSNR",
+        "hit/miss",
+        "depth med",
+        "depth max"
+    )
+}
+
+fn error_columns(e: &ImageError) -> String {
+    let (m, w) = (&e.model, &e.whole);
+    format!(
+        "{:>7.3} {:>6} {:>7.4} {:>7.2} {:>+6.2} {:>8.3} {:>8} {:>8} {:>9.2e} {:>9.2e}",
+        m.rmse,
+        db(m.psnr_db),
+        m.ssim,
+        100.0 * m.within_tolerance,
+        m.bias,
+        w.rmse,
+        db(w.psnr_db),
+        e.depth.hit_miss_differ,
+        e.depth.median_relative,
+        e.depth.max_relative,
+    )
 }
 
 fn print_table(
     a: &Args,
     cameras: &[Camera],
-    reference: &Reference,
+    full: &FullDetail,
     rows: &[Row],
 ) -> Result<(), CliError> {
     let (w, h) = a.view.size;
+    let model_pixels = full.floor.error.model.pixels;
     outln!(
-        "{}: {w}x{h}, {} camera(s), {} threads; warm caches, median of {} timed frame(s); \
-         error against PoE 0 with a blocking cache ({:.1} ms cold)",
+        "{}: {w}x{h}, {} camera(s), {} threads; warm caches, median of {} timed frame(s)",
         a.model.display(),
         cameras.len(),
         rayon::current_num_threads(),
         a.repeat,
-        reference.ms / cameras.len().max(1) as f64,
     )?;
-    outln!("{:<8} {:<5} {:>5} {:>9} {:>8} {:>9} {:>8} {:>7} {:>6} {:>6} {:>6} {:>6} {:>6} {:>7} {:>6} {:>7} {:>7} {:>8} {:>9} {:>9}",
-        "cache", "lod", "poe", "ms", "Mrays/s", "nodes/ray", "WS MiB", "blocks", "tri%", "voxel%",
-        "rlod%", "proxy%", "miss%", "RMSE", "PSNR", "SSIM", format!("<={}%", a.tolerance), "hit/miss",
-        "depth med", "depth max"
+    outln!(
+        "error against full detail at {} rays per pixel (PoE 0, blocking cache, {:.1} ms cold) \
+         on the model's pixels (hit in either image: {model_pixels} for the floor); \"all\": the \
+         whole image",
+        full.reference.spp,
+        full.reference.ms,
+    )?;
+    let speed = speed_header();
+    outln!("{speed} {}", error_header(a.tolerance))?;
+    let floor = format!(
+        "aliasing floor: PoE 0, 1 ray per pixel, blocking ({:.2} ms cold)",
+        full.floor.render.ms
+    );
+    outln!(
+        "{floor:<width$} {}",
+        error_columns(&full.floor.error),
+        width = speed.len()
     )?;
     for r in rows {
-        let p = &r.primary;
-        let n = (p.triangle + p.voxel + p.rlod + p.proxy + p.miss).max(1) as f64;
-        let pct = |x: u64| 100.0 * x as f64 / n;
-        let e = &r.error;
-        outln!("{:<8} {:<5} {:>5} {:>9.2} {:>8.2} {:>9.1} {:>8.1} {:>7} {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>6.1} {:>7.3} {:>6} {:>7.4} {:>7.2} {:>8} {:>9.2e} {:>9.2e}",
-            r.cache,
-            r.lod,
-            r.poe,
-            r.ms,
-            r.rays_per_second / 1e6,
-            r.nodes_per_ray,
-            r.working_set_mb,
-            r.blocks_touched,
-            pct(p.triangle),
-            pct(p.voxel),
-            pct(p.rlod),
-            pct(p.proxy),
-            pct(p.miss),
-            e.rmse,
-            db(e.psnr_db),
-            e.ssim,
-            100.0 * e.within_tolerance,
-            e.depth.hit_miss_differ,
-            e.depth.median_relative,
-            e.depth.max_relative,
-        )?;
+        outln!("{} {}", speed_columns(r), error_columns(&r.error))?;
     }
     Ok(())
 }

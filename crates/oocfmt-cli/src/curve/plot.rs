@@ -1,5 +1,6 @@
-//! The plot of frame time against error, one point per PoE (labelled) and one line per
-//! cache, with plotters: SVG through its SVG backend, PNG through [`Canvas`], an RGB8 backend
+//! The plot of error on the model's pixels against frame time, one point per PoE (labelled)
+//! and one line per cache, the aliasing floor a horizontal line (points under it are closer to
+//! the true picture than full detail at one ray per pixel), with plotters: SVG through its SVG backend, PNG through [`Canvas`], an RGB8 backend
 //! whose text is the 8 × 8 bitmap font (plotters' own bitmap text needs system fonts).
 
 use std::convert::Infallible;
@@ -42,15 +43,16 @@ fn io_error(path: &Path, e: impl std::fmt::Display) -> CliError {
     }
 }
 
-/// Writes the plot of `rows` to `path`, SVG or PNG by its extension.
-pub fn write(path: &Path, model: &Path, rows: &[Row]) -> Result<(), CliError> {
-    let title = format!("{}: frame time against error", model_name(model));
+/// Writes the plot of `rows` and the aliasing floor's RMSE `floor` to `path`, SVG or PNG by
+/// its extension.
+pub fn write(path: &Path, model: &Path, rows: &[Row], floor: f64) -> Result<(), CliError> {
+    let title = format!("{}: error against frame time", model_name(model));
     match Format::of(path) {
         Some(Format::Svg) => {
             let mut svg = String::new();
             {
                 let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-                draw(&root, &title, rows).map_err(|e| io_error(path, e))?;
+                draw(&root, &title, rows, floor).map_err(|e| io_error(path, e))?;
                 root.present().map_err(|e| io_error(path, e))?;
             }
             std::fs::write(path, svg).map_err(|source| CliError::Io {
@@ -62,7 +64,7 @@ pub fn write(path: &Path, model: &Path, rows: &[Row]) -> Result<(), CliError> {
             let mut canvas = Canvas::new(SIZE.0, SIZE.1);
             {
                 let root = (&mut canvas).into_drawing_area();
-                draw(&root, &title, rows).map_err(|e| io_error(path, e))?;
+                draw(&root, &title, rows, floor).map_err(|e| io_error(path, e))?;
                 root.present().map_err(|e| io_error(path, e))?;
             }
             oocfmt_trace::output::write_png(path, canvas.width, canvas.height, &canvas.rgb)
@@ -75,19 +77,22 @@ pub fn write(path: &Path, model: &Path, rows: &[Row]) -> Result<(), CliError> {
     }
 }
 
-/// Draws the chart: x the RMSE against the reference, y the warm frame time.
+/// Draws the chart: x the warm frame time, y the RMSE on the model's pixels against the
+/// reference, and the floor's RMSE as a horizontal line.
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     title: &str,
     rows: &[Row],
+    floor: f64,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     root.fill(&WHITE)?;
     let finite = |v: f64| if v.is_finite() { v } else { 0.0 };
-    let max_x = rows
+    let floor = finite(floor);
+    let max_x = rows.iter().map(|r| finite(r.ms)).fold(0.0, f64::max);
+    let max_y = rows
         .iter()
-        .map(|r| finite(r.error.rmse))
-        .fold(0.0, f64::max);
-    let max_y = rows.iter().map(|r| finite(r.ms)).fold(0.0, f64::max);
+        .map(|r| finite(r.error.model.rmse))
+        .fold(floor, f64::max);
     // Room for the labels beside the points; a range is never empty.
     let x_hi = if max_x > 0.0 { max_x * 1.15 } else { 1.0 };
     let y_hi = if max_y > 0.0 { max_y * 1.15 } else { 1.0 };
@@ -99,8 +104,8 @@ fn draw<DB: DrawingBackend>(
         .build_cartesian_2d(0.0..x_hi, 0.0..y_hi)?;
     chart
         .configure_mesh()
-        .x_desc("RMSE against PoE 0 (levels of 255)")
-        .y_desc("frame ms (warm, median)")
+        .x_desc("frame ms (warm, median)")
+        .y_desc("RMSE on the model's pixels against full detail supersampled")
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 16))
         .draw()?;
@@ -116,7 +121,7 @@ fn draw<DB: DrawingBackend>(
         let mut points: Vec<(f64, f64, f32)> = rows
             .iter()
             .filter(|r| r.cache == cache && r.lod == lod)
-            .map(|r| (finite(r.error.rmse), finite(r.ms), r.poe))
+            .map(|r| (finite(r.ms), finite(r.error.model.rmse), r.poe))
             .collect();
         points.sort_by(|a, b| a.2.total_cmp(&b.2));
         chart
@@ -132,6 +137,24 @@ fn draw<DB: DrawingBackend>(
                 + Text::new(format!("poe {poe}"), (6, -16), ("sans-serif", 14))
         }))?;
     }
+    let grey = RGBColor(96, 96, 96);
+    chart
+        .draw_series(LineSeries::new(
+            [(0.0, floor), (x_hi, floor)],
+            grey.stroke_width(1),
+        ))?
+        .label(format!(
+            "aliasing floor: full detail, 1 ray/pixel (RMSE {floor:.2})"
+        ))
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], grey));
+    chart.draw_series(std::iter::once(
+        EmptyElement::at((0.0, floor))
+            + Text::new(
+                "aliasing floor".to_string(),
+                (6, -18),
+                ("sans-serif", 14).into_font().color(&grey),
+            ),
+    ))?;
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))

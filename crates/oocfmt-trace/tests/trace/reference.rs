@@ -9,6 +9,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use oocfmt::BlockKind;
+use oocfmt_trace::compare;
 use oocfmt_trace::{render, BlockingCache, Camera, RenderOptions, Scene};
 
 const W: u32 = 81;
@@ -178,5 +179,48 @@ fn a_tiny_cache_stays_within_its_budget_and_gives_the_same_image() {
         stats.cache.peak_bytes_resident <= budget as u64,
         "peak {} over the budget {budget}",
         stats.cache.peak_bytes_resident
+    );
+}
+
+#[test]
+fn the_supersampled_reference_differs_from_full_detail_on_the_model_only() {
+    // The true picture of the error measures: full detail at 16 stratified rays per pixel.
+    // Against it, the one-ray full-detail image (the aliasing floor) differs only where
+    // either image shows the model: elsewhere both are the background, exactly. So the whole
+    // image's squared error is the model's, and its RMSE the model's times √(model / all).
+    let dir = tempfile::tempdir().unwrap();
+    let path = common::mandelbulb(dir.path(), 20_000);
+    let scene = Arc::new(Scene::open(&path).unwrap());
+    let m = scene.metadata();
+    let cam = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, W, H);
+    let cache = BlockingCache::new(Arc::clone(&scene), 256 << 20);
+    let one = RenderOptions::default();
+    let sixteen = RenderOptions { spp: 16, ..one };
+    let (floor, _) = render(&scene, &cache, &cam, &one).unwrap();
+    let (reference, _) = render(&scene, &cache, &cam, &sixteen).unwrap();
+    // With one ray the model's pixels are the centre hits; with more, the centre hits and
+    // the pixels a sample ray hit besides (the silhouette's edge).
+    let hits: Vec<bool> = floor.depth.iter().map(|d| d.is_finite()).collect();
+    assert_eq!(floor.model, hits);
+    assert!(reference.model.iter().zip(&hits).all(|(m, h)| *m || !*h));
+    let edge = reference.model.iter().filter(|m| **m).count() - hits.iter().filter(|h| **h).count();
+    assert!(
+        edge > 0,
+        "sample rays find the model beyond the centre hits"
+    );
+    let e = compare::compare(&reference, &floor, 8).unwrap();
+    assert_eq!(e.whole.pixels, u64::from(W * H));
+    let model = reference.model.iter().filter(|m| **m).count() as u64;
+    assert_eq!(e.model.pixels, model);
+    assert!(e.model.rmse > 0.0, "one ray per pixel aliases: {e:?}");
+    let ratio = (e.model.pixels as f64 / e.whole.pixels as f64).sqrt();
+    assert!((e.whole.rmse - e.model.rmse * ratio).abs() < 1e-9, "{e:?}");
+    // SSIM and the share within tolerance are diluted too: closer to 1 over the whole image.
+    assert!(e.whole.ssim >= e.model.ssim && e.whole.within_tolerance >= e.model.within_tolerance);
+    // A reference of one ray is the floor itself.
+    let same = compare::compare(&floor, &floor, 0).unwrap();
+    assert_eq!(
+        (same.model.rmse, same.model.bias, same.model.ssim),
+        (0.0, 0.0, 1.0)
     );
 }
