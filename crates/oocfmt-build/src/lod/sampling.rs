@@ -206,8 +206,7 @@ impl NodeSampler<'_, '_> {
             // More rays where the standard error could move the sample by half the one-sample
             // threshold.
             let mut cast = base;
-            while cast >= FACE_RAYS_BASE
-                && cast < FACE_RAYS_MAX
+            while (FACE_RAYS_BASE..FACE_RAYS_MAX).contains(&cast)
                 && acc.standard_error() > f64::from(self.threshold) / 2.0
             {
                 let more = (4 * cast).min(FACE_RAYS_MAX);
