@@ -188,8 +188,7 @@ pub fn major_axis(d: [f32; 3]) -> usize {
 }
 
 /// The part of the ray inside the box [lo, hi] grown by `pad` on every side, within
-/// [t0, t1]: `(entry, exit, entry_axis)`, where `entry_axis` is the axis whose slab gave the
-/// entry (None when the entry is `t0`). A component of ±0, or one so tiny that its reciprocal
+/// [t0, t1]: `(entry, exit)`. A component of ±0, or one so tiny that its reciprocal
 /// overflows, makes the ray parallel to that slab: it is inside or outside for all t, and no
 /// 0 × inf product (NaN) is ever formed.
 pub fn ray_box(
@@ -199,8 +198,8 @@ pub fn ray_box(
     pad: f32,
     t0: f32,
     t1: f32,
-) -> Option<(f32, f32, Option<usize>)> {
-    let (mut near, mut far, mut axis) = (t0, t1, None);
+) -> Option<(f32, f32)> {
+    let (mut near, mut far) = (t0, t1);
     for k in 0..3 {
         let (l, h) = (lo[k] - pad, hi[k] + pad);
         let o = ray.org[k];
@@ -217,13 +216,12 @@ pub fn ray_box(
         }
         if a > near {
             near = a;
-            axis = Some(k);
         }
         if b < far {
             far = b;
         }
     }
-    (near <= far).then_some((near, far, axis))
+    (near <= far).then_some((near, far))
 }
 
 #[cfg(test)]
@@ -262,7 +260,7 @@ mod tests {
         assert_eq!(r.triangle(&A, &B, &C).map(|h| h.t), Some(2.0));
         assert_eq!(r.inv[0], f32::NEG_INFINITY);
         let b = ray_box(&r, [0.0; 3], [1.0; 3], 0.0, 0.0, f32::INFINITY);
-        assert_eq!(b, Some((1.0, 2.0, Some(2))));
+        assert_eq!(b, Some((1.0, 2.0)));
         let outside = Ray::new([1.5, 0.25, 2.0], [-0.0, 0.0, -1.0]);
         assert!(ray_box(&outside, [0.0; 3], [1.0; 3], 0.0, 0.0, f32::INFINITY).is_none());
     }
@@ -272,7 +270,7 @@ mod tests {
         // Origin exactly on the x = 0 slab with a zero x direction: (0 - 0) * inf would be NaN.
         let r = Ray::new([0.0, 0.5, -1.0], [0.0, 0.0, 1.0]);
         let b = ray_box(&r, [0.0; 3], [1.0; 3], 0.0, 0.0, f32::INFINITY);
-        assert_eq!(b, Some((1.0, 2.0, Some(2))));
+        assert_eq!(b, Some((1.0, 2.0)));
         // A subnormal component: its reciprocal overflows, the slab is treated as parallel.
         let r = Ray::new([0.5, 0.5, -1.0], [1e-45, 0.0, 1.0]);
         assert!(ray_box(&r, [0.0; 3], [1.0; 3], 0.0, 0.0, f32::INFINITY).is_some());
@@ -289,6 +287,6 @@ mod tests {
             0.0,
             f32::INFINITY,
         );
-        assert_eq!(b, Some((1.5, 1.5, Some(2))));
+        assert_eq!(b, Some((1.5, 1.5)));
     }
 }

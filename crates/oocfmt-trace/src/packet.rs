@@ -1,13 +1,13 @@
 //! Coherent rays traced together: a packet of `N` rays whose direction components have the same
 //! signs (and none is ±0 or so tiny that its reciprocal overflows) and whose watertight kernels
 //! share an axis permutation walks the kd-tree once for all of them (Wald 2004, §3: kd-tree
-//! packet traversal). Every ray keeps its own interval, entry axis and nearest hit; a mask says
-//! which rays are on the path being walked. At an inner node each ray makes the decision it
-//! makes alone ([`Tracer::trace`]), and the packet goes where any ray goes: near child first,
-//! the far child stacked for the rays that want it. Leaves test each triangle against all the
-//! packet's rays at once ([`RayLanes`]). LOD stops, missing blocks, proxies and R-LOD planes end
-//! a ray on the current path exactly as alone. The per-ray loops have fixed lengths and no
-//! early exits, so the compiler makes them SIMD.
+//! packet traversal). Every ray keeps its own interval and nearest hit; a mask says which rays
+//! are on the path being walked. At an inner node each ray makes the decision it makes alone
+//! ([`Tracer::trace`]), and the packet goes where any ray goes: near child first, the far child
+//! stacked for the rays that want it. Leaves test each triangle against all the packet's rays
+//! at once ([`RayLanes`]). LOD stops, missing blocks, proxies and R-LOD planes end a ray on the
+//! current path exactly as alone. The per-ray loops have fixed lengths and no early exits, so
+//! the compiler makes them SIMD.
 //!
 //! Every ray visits the same nodes in the same order as alone, with the same nearest distance
 //! at each (the near/far order depends only on the direction's signs), and a stacked subtree
@@ -31,10 +31,10 @@ use crate::traverse::{clamp_mid, proxy_sample, push_last, shown, Best, Hit, Memo
 /// Which rays of a packet (bit i: ray i).
 type Mask = u32;
 
-/// A subtree waiting on the packet's stack: each ray's interval and entry axis, which rays
-/// visit it, and for which of them it is a far child stacked by their own decision (the rays
-/// that went there alone, without visiting the near side, do not test it against their nearest
-/// hit when it is popped: alone they never stacked it).
+/// A subtree waiting on the packet's stack: each ray's interval, which rays visit it, and for
+/// which of them it is a far child stacked by their own decision (the rays that went there
+/// alone, without visiting the near side, do not test it against their nearest hit when it is
+/// popped: alone they never stacked it).
 #[derive(Clone, Copy)]
 struct Entry<'m, const N: usize> {
     data: &'m TreeletData,
@@ -44,7 +44,6 @@ struct Entry<'m, const N: usize> {
     check: Mask,
     t0: [f32; N],
     t1: [f32; N],
-    axis: [u32; N],
 }
 
 impl<'m, const N: usize> Entry<'m, N> {
@@ -60,12 +59,11 @@ impl<'m, const N: usize> Entry<'m, N> {
             check,
             t0: far.t0,
             t1: far.t1,
-            axis: far.axis,
         }
     }
 }
 
-/// A LOD node on the packet's path, with each ray's interval in its cell and entry axis.
+/// A LOD node on the packet's path, with each ray's interval in its cell.
 #[derive(Clone, Copy)]
 struct LastVoxels<'m, const N: usize> {
     data: &'m TreeletData,
@@ -73,7 +71,6 @@ struct LastVoxels<'m, const N: usize> {
     radius: f32,
     t: [f32; N],
     t1: [f32; N],
-    axis: [u32; N],
 }
 
 /// The per-ray state of the split decisions (structure of arrays) and the direction signs the
@@ -127,17 +124,15 @@ impl<const N: usize> Lanes<N> {
 }
 
 /// The decisions of every ray at a split plane: which rays visit the side they meet first and
-/// which the second, the crossing clamped to each ray's interval, and the axis a ray enters
-/// the second side through.
+/// which the second, and the crossing clamped to each ray's interval.
 struct Split<const N: usize> {
     before: Mask,
     after: Mask,
     mid: [f32; N],
-    axis: [u32; N],
 }
 
-/// Where the packet is: the node, each ray's interval in its cell and entry axis, and which
-/// rays are on this path.
+/// Where the packet is: the node, each ray's interval in its cell, and which rays are on this
+/// path.
 #[derive(Clone, Copy)]
 struct At<'m, const N: usize> {
     data: &'m TreeletData,
@@ -145,7 +140,6 @@ struct At<'m, const N: usize> {
     active: Mask,
     t0: [f32; N],
     t1: [f32; N],
-    axis: [u32; N],
 }
 
 impl<'m, const N: usize> At<'m, N> {
@@ -165,7 +159,6 @@ impl<'m, const N: usize> At<'m, N> {
             active,
             t0: e.t0,
             t1: e.t1,
-            axis: e.axis,
         })
     }
 
@@ -188,15 +181,12 @@ impl<'m, const N: usize> At<'m, N> {
             before: 0,
             after: 0,
             mid: [0.0; N],
-            axis: [0; N],
         };
-        let a = u32::from(a);
         for i in 0..N {
             let ts = (split - org[i]) * inv[i];
             s.before |= Mask::from(ts + tol[i] >= t0[i]) << i;
             s.after |= Mask::from(ts - tol[i] <= t1[i]) << i;
             s.mid[i] = clamp_mid(ts, t0[i], t1[i]);
-            s.axis[i] = if ts >= t0[i] { a } else { self.axis[i] };
         }
         let has = |c: u32| if c != NONE { active } else { 0 };
         s.before &= has(first);
@@ -224,7 +214,6 @@ impl<'m, const N: usize> At<'m, N> {
                     active: s.after,
                     t0: s.mid,
                     t1: self.t1,
-                    axis: s.axis,
                 });
                 self.node = first;
                 self.active = s.before;
@@ -235,7 +224,6 @@ impl<'m, const N: usize> At<'m, N> {
                 self.node = second;
                 self.active = s.after;
                 self.t0 = s.mid;
-                self.axis = s.axis;
                 Some(None)
             }
             (false, false) => None,
@@ -375,12 +363,12 @@ impl Tracer<'_> {
     /// scene's box. None when no ray does, or the root block is not available (then each ray
     /// wants it).
     fn packet_root<'m, const N: usize>(&self, w: &Packet<'_, 'm, N>) -> Option<Entry<'m, N>> {
-        let (mut t0, mut t1, mut axis) = ([0f32; N], [0f32; N], [3u32; N]);
+        let (mut t0, mut t1) = ([0f32; N], [0f32; N]);
         let mut live: Mask = 0;
         for (i, ray) in w.rays.iter().enumerate() {
             let eps = w.lanes.eps[i];
-            if let Some((a, b, ax)) = ray_box(ray, self.lo, self.hi, eps, 0.0, f32::INFINITY) {
-                (t0[i], t1[i], axis[i]) = (a, b, ax.map_or(3, |a| a as u32));
+            if let Some((a, b)) = ray_box(ray, self.lo, self.hi, eps, 0.0, f32::INFINITY) {
+                (t0[i], t1[i]) = (a, b);
                 live |= 1 << i;
             }
         }
@@ -404,7 +392,6 @@ impl Tracer<'_> {
             check: live,
             t0,
             t1,
-            axis,
         })
     }
 
@@ -433,7 +420,6 @@ impl Tracer<'_> {
                 radius: l.radius,
                 t: at.t0,
                 t1: at.t1,
-                axis: at.axis,
             },
         );
         let mut stop: Mask = 0;
@@ -459,8 +445,8 @@ impl Tracer<'_> {
                 if ends >> i & 1 == 0 {
                     continue;
                 }
-                let (t0, t1, axis) = (at.t0[i], at.t1[i], at.axis[i] as u8);
-                let own = || shown(&look, ray, t0, t1, axis, l.radius);
+                let (t0, t1) = (at.t0[i], at.t1[i]);
+                let own = || shown(&look, ray, t0, t1, l.radius);
                 let found = if stop >> i & 1 != 0 {
                     own()
                 } else {
@@ -532,10 +518,10 @@ impl Tracer<'_> {
                         Some(lv) => {
                             let (t, t1) = (lv.t[i], lv.t1[i]);
                             w.memo.want_later(w.keys[i], block, lv.radius, t);
-                            let found = lv.data.look(lv.lod).and_then(|(look, _)| {
-                                let axis = lv.axis[i] as u8;
-                                shown(&look, ray, t, t1, axis, lv.radius)
-                            });
+                            let found = lv
+                                .data
+                                .look(lv.lod)
+                                .and_then(|(look, _)| shown(&look, ray, t, t1, lv.radius));
                             near.offer(i, found);
                         }
                         None => {

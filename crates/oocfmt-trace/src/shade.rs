@@ -247,7 +247,7 @@ pub fn rough_cosine(cos: f32, sigma: f32) -> f32 {
     let sin = (1.0 - cos * cos).max(0.0).sqrt();
     let sin_b = (1.0 - sigma * sigma).max(0.0).sqrt();
     // cos(θ + β) ≥ 0: both facets are in view.
-    if cos * sigma - sin * sin_b >= 0.0 && cos > 0.0 {
+    if cos * sigma - sin * sin_b >= 0.0 && cos * sigma > 0.0 {
         let cos_2t = 2.0 * cos * cos - 1.0;
         let cos_2b = 2.0 * sigma * sigma - 1.0;
         ((1.0 + cos_2t * cos_2b) / (2.0 * cos * sigma)).clamp(0.0, 1.0)
@@ -396,6 +396,40 @@ mod tests {
         while c < 1.01 {
             assert_eq!(encode_srgb(c), srgb_exact(c), "at {c}");
             c = if c < 1e-3 { c + 1e-7 } else { c * 1.0001 };
+        }
+    }
+}
+
+#[cfg(test)]
+mod rough_tests {
+    use super::rough_cosine;
+
+    #[test]
+    fn the_v_groove_cosine_has_its_known_answers() {
+        // Flat: the cosine itself. Head-on: σ.
+        for c in [0.0, 0.3, 0.7, 1.0] {
+            assert!((rough_cosine(c, 1.0) - c).abs() < 1e-6);
+        }
+        for s in [0.2, 0.5, 0.9] {
+            assert!((rough_cosine(1.0, s) - s).abs() < 1e-6);
+        }
+        // β = 30°, θ = 45°: both facets in view, 1 / (2 cos 45° cos 30°).
+        let (b, t) = (30f32.to_radians(), 45f32.to_radians());
+        let want = 1.0 / (2.0 * t.cos() * b.cos());
+        assert!((rough_cosine(t.cos(), b.cos()) - want).abs() < 1e-5);
+        // θ = 70°: past 90° − β only the near facet shows, cos(θ − β).
+        let t = 70f32.to_radians();
+        assert!((rough_cosine(t.cos(), b.cos()) - (t - b).cos()).abs() < 1e-5);
+        // Continuous where the far facet leaves the view (θ + β = 90°).
+        let edge = 60f32.to_radians();
+        let (lo, hi) = (edge - 1e-3, edge + 1e-3);
+        assert!((rough_cosine(lo.cos(), b.cos()) - rough_cosine(hi.cos(), b.cos())).abs() < 1e-2);
+        // Never out of range, never NaN.
+        for c in [f32::NAN, -1.0, 0.0, 2.0] {
+            for s in [f32::NAN, -1.0, 0.0, 0.5, 2.0] {
+                let l = rough_cosine(c, s);
+                assert!((0.0..=1.0).contains(&l), "{c} {s}: {l}");
+            }
         }
     }
 }

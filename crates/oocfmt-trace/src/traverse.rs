@@ -2,8 +2,8 @@
 //! across blocks, remembering the last voxel met on the path.
 //!
 //! - At a LOD node whose enclosing-sphere radius r satisfies r ≤ t_entry · C the ray stops on
-//!   the node's voxel, at the entry distance of the node's cell, with the sample of the face it
-//!   entered through. C = poe · 2 tan(fov_y / 2) / image_height is the size of `poe` pixels per
+//!   the node's voxel, at the entry distance of the node's cell, with the look of the faces its
+//!   direction sees ([`voxel_look`]). C = poe · 2 tan(fov_y / 2) / image_height is the size of `poe` pixels per
 //!   unit of distance, so the test reads "the voxel's radius is at most `poe` pixels". `poe` 0
 //!   never stops (full detail).
 //! - With R-LODs (Yoon et al. 2006, §4.2) the same test uses the R-LOD's error radius, and a
@@ -110,7 +110,6 @@ struct LastVoxel<'m> {
     t: f32,
     /// Where the ray leaves the node's cell.
     t1: f32,
-    axis: u8,
 }
 
 impl LastVoxel<'_> {
@@ -118,18 +117,17 @@ impl LastVoxel<'_> {
     /// hit (None when the plane is missed).
     fn shown(&self, ray: &Ray) -> Option<(f32, Best<'static>)> {
         let (look, _) = self.data.look(self.lod)?;
-        shown(&look, ray, self.t, self.t1, self.axis, self.radius)
+        shown(&look, ray, self.t, self.t1, self.radius)
     }
 }
 
 /// What a LOD node showing `shown` gives a ray crossing its cell in [t0, t1], and where; None
-/// when a plane is missed. (`_axis`, the face the ray entered through, is no longer needed.)
+/// when a plane is missed.
 pub(crate) fn shown(
     shown: &Shown,
     ray: &Ray,
     t0: f32,
     t1: f32,
-    _axis: u8,
     radius: f32,
 ) -> Option<(f32, Best<'static>)> {
     match shown {
@@ -175,19 +173,17 @@ fn plane_hit(p: &Plane, ray: &Ray, t0: f32, t1: f32) -> Option<f32> {
     (t > 0.0 && t >= t0 - widen && t <= t1 + widen).then_some(t)
 }
 
-/// A subtree waiting on the stack: its treelet block and node, the ray's interval in its cell,
-/// the axis of the face the ray entered the cell through (3: none, the ray starts inside) and
-/// how many LOD nodes lie above it, so that the last of them is its last voxel. The LOD nodes
-/// above every stacked subtree are on the path to the node being visited (the stack holds far
-/// siblings of that path), so one stack of them, cut back to `lods` when the entry is popped,
-/// serves all entries: an entry stays 24 bytes.
+/// A subtree waiting on the stack: its treelet block and node, the ray's interval in its cell
+/// and how many LOD nodes lie above it, so that the last of them is its last voxel. The LOD
+/// nodes above every stacked subtree are on the path to the node being visited (the stack
+/// holds far siblings of that path), so one stack of them, cut back to `lods` when the entry
+/// is popped, serves all entries: an entry stays 24 bytes.
 #[derive(Clone, Copy)]
 struct Entry<'m> {
     data: &'m TreeletData,
     node: u32,
     t0: f32,
     t1: f32,
-    axis: u8,
     lods: u8,
 }
 
@@ -275,11 +271,11 @@ pub struct Tracer<'a> {
     pub(crate) max_visits: u64,
 }
 
-/// One side of a split: left or right child, interval, entry axis.
-type Side = (bool, f32, f32, u8);
+/// One side of a split: left or right child, interval.
+type Side = (bool, f32, f32);
 
-/// A child to visit: node index, interval, entry axis.
-type Visit = (u32, f32, f32, u8);
+/// A child to visit: node index, interval.
+type Visit = (u32, f32, f32);
 
 /// The children to visit, nearest first, given the sides a split yields and which child node
 /// (if any) each side names.
@@ -288,8 +284,8 @@ fn ordered(
     child: impl Fn(bool) -> Option<u32>,
 ) -> Option<(Visit, Option<Visit>)> {
     let pick = |s: Option<Side>| {
-        let (is_left, t0, t1, axis) = s?;
-        Some((child(is_left)?, t0, t1, axis))
+        let (is_left, t0, t1) = s?;
+        Some((child(is_left)?, t0, t1))
     };
     match (pick(near), pick(far)) {
         (Some(n), f) => Some((n, f)),
@@ -307,7 +303,7 @@ fn parallel_step<'m>(
     (a, split): (u8, f32),
     [left, right]: [u32; 2],
 ) -> ControlFlow<()> {
-    let sides = split_sides(w.ray, a, split, at.t0, at.t1, at.axis, w.eps);
+    let sides = split_sides(w.ray, a, split, at.t0, at.t1, w.eps);
     let child = |is_left| {
         let c = if is_left { left } else { right };
         (c != NONE).then_some(c)
@@ -315,16 +311,15 @@ fn parallel_step<'m>(
     let Some((near, far)) = ordered(sides, child) else {
         return ControlFlow::Break(());
     };
-    if let Some((fc, f0, f1, fax)) = far {
+    if let Some((fc, f0, f1)) = far {
         let _ = w.stack.try_push(Entry {
             node: fc,
             t0: f0,
             t1: f1,
-            axis: fax,
             ..*at
         });
     }
-    (at.node, at.t0, at.t1, at.axis) = near;
+    (at.node, at.t0, at.t1) = near;
     ControlFlow::Continue(())
 }
 
@@ -356,16 +351,12 @@ fn crossing_step<'m>(
             let _ = w.stack.try_push(Entry {
                 node: second,
                 t0: mid,
-                axis: if ts >= at.t0 { a } else { at.axis },
                 ..*at
             });
             (at.node, at.t1) = (first, mid);
         }
         (true, false) => (at.node, at.t1) = (first, mid),
-        (false, true) => {
-            at.axis = if ts >= at.t0 { a } else { at.axis };
-            (at.node, at.t0) = (second, mid);
-        }
+        (false, true) => (at.node, at.t0) = (second, mid),
         (false, false) => return ControlFlow::Break(()),
     }
     ControlFlow::Continue(())
@@ -435,7 +426,7 @@ impl<'a> Tracer<'a> {
         let eps = self.ray_eps(ray);
         let t_max = if t_max.is_nan() { f32::INFINITY } else { t_max };
         let t_min = if t_min.is_nan() { 0.0 } else { t_min.max(0.0) };
-        let (t0, t1, axis) = ray_box(ray, self.lo, self.hi, eps, t_min, t_max)?;
+        let (t0, t1) = ray_box(ray, self.lo, self.hi, eps, t_min, t_max)?;
         let (root_block, root_treelet) = self.root?;
         let Some(root_data) = memo.treelets(self.cache, root_block) else {
             memo.want(root_block, f32::INFINITY, t0);
@@ -456,7 +447,6 @@ impl<'a> Tracer<'a> {
             node: *root_data.roots.get(root_treelet as usize)?,
             t0,
             t1,
-            axis: axis.map_or(3, |a| a as u8),
             lods: 0,
         });
         let axes = Axes::new(ray, eps);
@@ -543,7 +533,6 @@ impl<'a> Tracer<'a> {
                 radius: l.radius,
                 t: at.t0,
                 t1: at.t1,
-                axis: at.axis,
             },
         );
         let stop = self.lod_c > 0.0 && l.radius <= at.t0 * self.lod_c;
@@ -556,8 +545,8 @@ impl<'a> Tracer<'a> {
             let Some((look, proxy)) = data.look(lod) else {
                 return ControlFlow::Break(());
             };
-            let (t0, t1, axis) = (at.t0, at.t1, at.axis);
-            let own = || shown(&look, ray, t0, t1, axis, l.radius);
+            let (t0, t1) = (at.t0, at.t1);
+            let own = || shown(&look, ray, t0, t1, l.radius);
             let found = if stop {
                 own()
             } else {
@@ -573,7 +562,7 @@ impl<'a> Tracer<'a> {
             w.offer(found);
             return ControlFlow::Break(());
         };
-        let sides = split_sides(ray, a, split, at.t0, at.t1, at.axis, w.eps);
+        let sides = split_sides(ray, a, split, at.t0, at.t1, w.eps);
         let root = |is_left| {
             let t = if is_left { l.left } else { l.right };
             let root = *child.roots.get(t as usize)?;
@@ -582,18 +571,17 @@ impl<'a> Tracer<'a> {
         let Some((near, far)) = ordered(sides, root) else {
             return ControlFlow::Break(());
         };
-        if let Some((fc, f0, f1, fax)) = far {
+        if let Some((fc, f0, f1)) = far {
             let _ = w.stack.try_push(Entry {
                 data: child,
                 node: fc,
                 t0: f0,
                 t1: f1,
-                axis: fax,
                 lods: at.lods,
             });
         }
         at.data = child;
-        (at.node, at.t0, at.t1, at.axis) = near;
+        (at.node, at.t0, at.t1) = near;
         ControlFlow::Continue(())
     }
 
@@ -701,25 +689,24 @@ pub(crate) fn clamp_mid(ts: f32, t0: f32, t1: f32) -> f32 {
 }
 
 /// The children a ray in [t0, t1] visits at a split plane, nearest first, with their
-/// intervals and entry axes. `entry` is the axis the ray entered the parent through.
+/// intervals.
 fn split_sides(
     ray: &Ray,
     axis: u8,
     split: f32,
     t0: f32,
     t1: f32,
-    entry: u8,
     eps: f32,
 ) -> (Option<Side>, Option<Side>) {
     let k = usize::from(axis.min(2));
     let (o, d, inv) = (ray.org[k], ray.dir[k], ray.inv[k]);
     if d == 0.0 || !inv.is_finite() {
         return if o < split - eps {
-            (Some((true, t0, t1, entry)), None)
+            (Some((true, t0, t1)), None)
         } else if o > split + eps {
-            (Some((false, t0, t1, entry)), None)
+            (Some((false, t0, t1)), None)
         } else {
-            (Some((true, t0, t1, entry)), Some((false, t0, t1, entry)))
+            (Some((true, t0, t1)), Some((false, t0, t1)))
         };
     }
     // The side the ray is on before it crosses the plane depends on the direction's sign
@@ -729,9 +716,8 @@ fn split_sides(
     let ts = (split - o) * inv;
     let tol = eps * inv.abs();
     let mid = clamp_mid(ts, t0, t1);
-    let before = (ts + tol >= t0).then_some((left_before, t0, mid, entry));
-    let after_axis = if ts >= t0 { axis } else { entry };
-    let after = (ts - tol <= t1).then_some((!left_before, mid, t1, after_axis));
+    let before = (ts + tol >= t0).then_some((left_before, t0, mid));
+    let after = (ts - tol <= t1).then_some((!left_before, mid, t1));
     match before {
         Some(b) => (Some(b), after),
         None => (after, None),
@@ -821,7 +807,8 @@ pub(crate) fn proxy_sample(samples: &[Sample; 18], ray: &Ray) -> Sample {
 #[cfg(test)]
 mod tests {
     #[test]
-    fn a_stack_entry_is_24_bytes() {
+    fn a_stack_entry_and_a_last_voxel_are_24_bytes() {
         assert_eq!(std::mem::size_of::<super::Entry<'_>>(), 24);
+        assert_eq!(std::mem::size_of::<super::LastVoxel<'_>>(), 24);
     }
 }
