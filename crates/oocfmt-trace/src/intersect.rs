@@ -74,26 +74,23 @@ impl Ray {
         }
     }
 
-    /// The nearest hit in `t_min ..` closer than `t_max` among the triangles `ids` of
-    /// `positions` (the first of equal distances; ids past `positions` are skipped): what
-    /// testing them one by one with [`Ray::triangle`] keeps, with the permutation picked once
-    /// for the list. `t_min` is 0 but for a ray going on behind a translucent surface.
+    /// The nearest hit closer than `t_max` among the triangles `ids` of `positions` (the
+    /// first of equal distances; ids past `positions` are skipped): what testing them one by
+    /// one with [`Ray::triangle`] keeps, with the permutation picked once for the list.
     #[inline]
     pub fn nearest(
         &self,
         ids: &[u16],
         positions: &[[[f32; 3]; 3]],
-        t_min: f32,
         t_max: f32,
     ) -> Option<(u16, TriHit)> {
-        let (lo, hi) = (t_min, t_max);
         match (self.kz, self.kx) {
-            (0, 1) => self.nearest_in::<1, 2, 0>(ids, positions, lo, hi),
-            (0, _) => self.nearest_in::<2, 1, 0>(ids, positions, lo, hi),
-            (1, 2) => self.nearest_in::<2, 0, 1>(ids, positions, lo, hi),
-            (1, _) => self.nearest_in::<0, 2, 1>(ids, positions, lo, hi),
-            (_, 0) => self.nearest_in::<0, 1, 2>(ids, positions, lo, hi),
-            (_, _) => self.nearest_in::<1, 0, 2>(ids, positions, lo, hi),
+            (0, 1) => self.nearest_in::<1, 2, 0>(ids, positions, t_max),
+            (0, _) => self.nearest_in::<2, 1, 0>(ids, positions, t_max),
+            (1, 2) => self.nearest_in::<2, 0, 1>(ids, positions, t_max),
+            (1, _) => self.nearest_in::<0, 2, 1>(ids, positions, t_max),
+            (_, 0) => self.nearest_in::<0, 1, 2>(ids, positions, t_max),
+            (_, _) => self.nearest_in::<1, 0, 2>(ids, positions, t_max),
         }
     }
 
@@ -102,7 +99,6 @@ impl Ray {
         &self,
         ids: &[u16],
         positions: &[[[f32; 3]; 3]],
-        t_min: f32,
         mut t_max: f32,
     ) -> Option<(u16, TriHit)> {
         let mut best = None;
@@ -111,7 +107,7 @@ impl Ray {
                 continue;
             };
             if let Some(h) = self.triangle_in::<KX, KY, KZ>(a, b, c) {
-                if h.t < t_max && h.t >= t_min {
+                if h.t < t_max {
                     t_max = h.t;
                     best = Some((ti, h));
                 }

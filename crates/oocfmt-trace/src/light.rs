@@ -15,7 +15,6 @@
 
 use crate::cache::BlockCache;
 use crate::camera::Frame;
-use crate::composite::transmittance;
 use crate::intersect::{ray_box, Ray};
 use crate::scene::Scene;
 use crate::spawn::Origin;
@@ -96,23 +95,24 @@ impl<'a> Shadows<'a> {
         self.light
     }
 
-    /// The share of the light that reaches the hit `from` of a primary ray that travelled
-    /// `t_primary`: one shadow ray from the offset origin to the light, 0 behind an opaque
-    /// surface, less than 1 behind translucent LOD entries ([`transmittance`]).
-    pub fn visible(&self, from: &Origin, t_primary: f32, memo: &mut Memo) -> f32 {
+    /// Whether the light reaches the hit `from` of a primary ray that travelled `t_primary`:
+    /// one shadow ray from the offset origin to the light.
+    pub fn visible(&self, from: &Origin, t_primary: f32, memo: &mut Memo) -> bool {
         let p = from.point();
         let Some(l) = unit_towards(p, self.light) else {
-            return 1.0;
+            return true;
         };
         let o = from.spawn(l.0);
         let Some((dir, dist)) = unit_towards(o, self.light) else {
-            return 1.0;
+            return true;
         };
         let ray = Ray::new(o, dir);
         let exit = ray_box(&ray, self.lo, self.hi, 0.0, 0.0, dist).map_or(0.0, |b| b.1);
         let k = shadow_lod_c(self.pixel_c, t_primary, dist, exit);
         let tracer = Tracer::new(self.scene, self.cache, k);
-        transmittance(&tracer, &ray, dist, memo)
+        !tracer
+            .trace_to(&ray, dist, memo)
+            .is_some_and(|h| occludes(&h))
     }
 }
 

@@ -10,8 +10,8 @@
 //! at `poe` 0 every ray, AO included, sees full detail.
 
 use crate::cache::BlockCache;
-use crate::composite::transmittance;
 use crate::intersect::Ray;
+use crate::light::occludes;
 use crate::sampling::{cosine_hemisphere, point};
 use crate::scene::Scene;
 use crate::spawn::Origin;
@@ -70,16 +70,18 @@ impl<'a> Occlusion<'a> {
     }
 
     /// The share of the rays from `from`, over the hemisphere around the unit vector `n`, that
-    /// nothing blocks within the distance (translucent LOD entries block in part,
-    /// [`transmittance`]); `seed` rotates the pattern (one per primary ray).
+    /// nothing blocks within the distance; `seed` rotates the pattern (one per primary ray).
     pub fn open(&self, from: &Origin, n: [f32; 3], seed: u64, memo: &mut Memo) -> f32 {
-        let mut open = 0f32;
+        let mut open = 0u32;
         for i in 0..self.rays {
             let dir = cosine_hemisphere(n, point(i, self.rays, seed));
             let ray = Ray::new(from.spawn(dir), dir);
-            open += transmittance(&self.tracer, &ray, self.distance, memo);
+            let hit = self.tracer.trace_to(&ray, self.distance, memo);
+            if !hit.is_some_and(|h| occludes(&h)) {
+                open += 1;
+            }
         }
-        open / self.rays as f32
+        open as f32 / self.rays as f32
     }
 }
 

@@ -26,7 +26,7 @@ use oocfmt::records::MAX_TREE_DEPTH;
 use crate::blocks::{NodeView, TreeletData, NONE};
 use crate::intersect::{ray_box, Ray};
 use crate::lanes::RayLanes;
-use crate::traverse::{clamp_mid, proxy_sample, push_last, shown, Best, Hit, Memo, Tracer};
+use crate::traverse::{clamp_mid, opaque, proxy_sample, push_last, shown, Best, Hit, Memo, Tracer};
 
 /// Which rays of a packet (bit i: ray i).
 type Mask = u32;
@@ -456,7 +456,7 @@ impl Tracer<'_> {
                         Some(p) => Some(proxy_sample(&p.samples, ray))
                             .filter(|s| !s.is_empty())
                             .map(|s| (t0, Best::Proxy(s, l.radius))),
-                        None => own(),
+                        None => opaque(own()),
                     }
                 };
                 near.offer(i, found);
@@ -522,7 +522,7 @@ impl Tracer<'_> {
                                 .data
                                 .look(lv.lod)
                                 .and_then(|(look, _)| shown(&look, ray, t, t1, lv.radius));
-                            near.offer(i, found);
+                            near.offer(i, opaque(found));
                         }
                         None => {
                             let t = at.t0[i];

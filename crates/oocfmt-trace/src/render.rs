@@ -430,16 +430,10 @@ impl<'a> FrameJob<'a> {
         if !hit.is_translucent() {
             return self.lighting.colour(hit, ray, seed, memo, secondary);
         }
+        // The packet found the first surface; one walk of the single ray finds every one.
         let lighting = &self.lighting;
         let mut shade = |h: &Hit, m: &mut Memo| lighting.colour(h, ray, seed, m, secondary);
-        composite(
-            &self.tracer,
-            ray,
-            hit,
-            memo,
-            self.opts.background,
-            &mut shade,
-        )
+        composite(&self.tracer, ray, memo, self.opts.background, &mut shade)
     }
 
     /// The sRGB encoding of the mean, in linear RGB, of `spp` rays through stratified points

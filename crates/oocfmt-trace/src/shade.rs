@@ -215,7 +215,9 @@ impl<'a> Lighting<'a> {
                 let cos = rough_cosine(dot(n, l).min(1.0), sigma);
                 if cos > 0.0 {
                     counts.shadow += 1;
-                    return cos * s.visible(from, hit.t, memo);
+                    if s.visible(from, hit.t, memo) {
+                        return cos;
+                    }
                 }
                 0.0
             }

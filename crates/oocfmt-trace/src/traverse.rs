@@ -85,12 +85,9 @@ pub struct Hit {
     /// σ, the factor on the light's cosine (spec §5.1): 1 for a triangle, a proxy and every
     /// LOD entry of an unfiltered file.
     pub shade: f32,
-    /// α, the share of what the ray shows that is this surface (spec §5.1): below 1 the ray
-    /// goes on from [`Hit::exit`] and what it meets there shows through. 1 for a triangle.
+    /// α, the share of what the ray shows that is this surface (spec §5.1): below 1 what lies
+    /// behind shows through ([`Tracer::trace_layers`]). 1 for a triangle.
     pub coverage: f32,
-    /// Where the ray leaves the cell of the LOD node it ended on (`t` for a triangle or a
-    /// proxy): a semi-transparent surface's ray goes on from here.
-    pub exit: f32,
 }
 
 impl Hit {
@@ -133,14 +130,7 @@ pub(crate) fn shown(
     match shown {
         Shown::Voxel(v) => {
             let look = voxel_look(v, ray);
-            Some((
-                t0,
-                Best::Voxel {
-                    look,
-                    radius,
-                    exit: t1,
-                },
-            ))
+            Some((t0, Best::Voxel { look, radius }))
         }
         Shown::Plane(p) => plane_hit(p, ray, t0, t1).map(|t| {
             (
@@ -151,7 +141,6 @@ pub(crate) fn shown(
                     radius,
                     coverage: p.coverage,
                     shade: p.shade,
-                    exit: t1.max(t),
                 },
             )
         }),
@@ -200,22 +189,69 @@ struct Walk<'r, 'm> {
     lasts: Lasts<'m>,
     best: Best<'m>,
     best_t: f32,
-    /// Where the ray starts: 0, or past the translucent surface it goes on behind. Nothing
-    /// nearer counts, not even a cell that only touches the start (the one just left).
-    t_min: f32,
+    /// Whether translucent surfaces are collected in `layers` (the ray goes on behind them)
+    /// rather than ending the ray like opaque ones.
+    collect: bool,
+    /// The translucent surfaces met, in the order found, and what they let through.
+    layers: ArrayVec<(f32, Best<'m>), MAX_LAYERS>,
+    through: f32,
 }
 
 impl<'m> Walk<'_, 'm> {
-    /// Keeps `found` when it is nearer than the nearest surface so far and not before the
-    /// ray's start (a plane's hit may lie up to its expansion outside its cell).
+    /// Keeps `found` when it is nearer than the nearest surface so far: as the nearest, or,
+    /// when collecting and it is translucent, as a layer the ray goes on behind. Once the
+    /// layers would let almost nothing through, the next one ends the ray as if opaque.
     #[inline(always)]
     fn offer(&mut self, found: Option<(f32, Best<'m>)>) {
-        if let Some((t, s)) = found.filter(|&(t, _)| t < self.best_t && t >= self.t_min) {
-            self.best_t = t;
-            self.best = s;
+        let Some((t, s)) = found.filter(|&(t, _)| t < self.best_t) else {
+            return;
+        };
+        let alpha = s.coverage();
+        if self.collect && alpha < 1.0 && !self.layers.is_full() {
+            let through = self.through * (1.0 - alpha.max(0.0));
+            if through >= MIN_TRANSMITTANCE {
+                self.layers.push((t, s));
+                self.through = through;
+                return;
+            }
+            // What would be left behind could hardly show: this surface ends the ray.
+        }
+        self.best_t = t;
+        self.best = s;
+    }
+
+    /// The layers in front of the nearest opaque surface, nearest first, and that surface.
+    fn finish(self) -> Layers {
+        let mut layers = self.layers;
+        let best_t = self.best_t;
+        layers.retain(|(t, _)| *t <= best_t);
+        layers.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Layers {
+            translucent: layers.iter().filter_map(|&(t, s)| s.hit(t)).collect(),
+            end: self.best.hit(best_t),
         }
     }
 }
+
+/// What a ray meets ([`Tracer::trace_layers`]): the translucent surfaces in front, nearest
+/// first, and the surface it ends on (None: it leaves the scene, or the layers let nothing
+/// through).
+#[derive(Clone, Debug, Default)]
+pub struct Layers {
+    /// Surfaces with coverage below 1, at most [`MAX_LAYERS`].
+    pub translucent: ArrayVec<Hit, MAX_LAYERS>,
+    /// The opaque surface behind them.
+    pub end: Option<Hit>,
+}
+
+/// The most translucent surfaces one ray collects; past them the next surface ends it, opaque
+/// (spec §5.1 allows a cap). Past a few layers what is left behind hardly shows.
+pub const MAX_LAYERS: usize = 16;
+
+/// Transmittance below which the next surface ends the ray as if opaque: what would still
+/// show behind it is at most 1/32 of the pixel, and the layers a rough surface stacks up cost
+/// more than they change (`docs/notes/2026-12-02-prefiltered-lod.md`).
+pub const MIN_TRANSMITTANCE: f32 = 1.0 / 32.0;
 
 /// Makes `lv` the last voxel of the path (dropping the outermost when a corrupt tree is deeper
 /// than any path can be) and returns the count to store in entries below it.
@@ -236,11 +272,10 @@ pub(crate) enum Best<'m> {
         triangle: u32,
         bary: [f32; 3],
     },
-    /// What a voxel shows the ray, the radius of its cell and where the ray leaves it.
+    /// What a voxel shows the ray and the radius of its cell.
     Voxel {
         look: VoxelLook,
         radius: f32,
-        exit: f32,
     },
     /// A proxy's sample and the radius of its node's cell.
     Proxy(Sample, f32),
@@ -250,7 +285,6 @@ pub(crate) enum Best<'m> {
         radius: f32,
         coverage: f32,
         shade: f32,
-        exit: f32,
     },
 }
 
@@ -417,20 +451,38 @@ impl<'a> Tracer<'a> {
     /// Where the ray first meets the scene closer than `t_max` (exclusive), or None: a shadow
     /// ray towards a light at distance `t_max` is occluded when this returns a hit.
     pub fn trace_to(&self, ray: &Ray, t_max: f32, memo: &Memo) -> Option<Hit> {
-        self.trace_between(ray, 0.0, t_max, memo)
+        self.walk_one(ray, t_max, memo, false).end
     }
 
-    /// Where the ray first meets the scene between `t_min` and `t_max`, or None: how a ray
-    /// goes on behind a semi-transparent surface ([`Hit::exit`]).
-    pub fn trace_between(&self, ray: &Ray, t_min: f32, t_max: f32, memo: &Memo) -> Option<Hit> {
+    /// Every surface the ray meets closer than `t_max`, front to back, up to the first opaque
+    /// one (spec §5.1): the translucent ones it goes on behind, then what it ends on (None:
+    /// it leaves the scene). One walk of the tree: behind a translucent LOD entry the walk
+    /// goes on with the cells behind it, as it does past an empty one.
+    pub fn trace_layers(&self, ray: &Ray, t_max: f32, memo: &Memo) -> Layers {
+        self.walk_one(ray, t_max, memo, true)
+    }
+
+    /// The walk of [`Tracer::trace_to`] (`collect` false: the nearest surface ends the ray)
+    /// and [`Tracer::trace_layers`] (`collect` true).
+    fn walk_one(&self, ray: &Ray, t_max: f32, memo: &Memo, collect: bool) -> Layers {
+        let none = Layers {
+            translucent: ArrayVec::new(),
+            end: None,
+        };
         let eps = self.ray_eps(ray);
         let t_max = if t_max.is_nan() { f32::INFINITY } else { t_max };
-        let t_min = if t_min.is_nan() { 0.0 } else { t_min.max(0.0) };
-        let (t0, t1) = ray_box(ray, self.lo, self.hi, eps, t_min, t_max)?;
-        let (root_block, root_treelet) = self.root?;
+        let Some((t0, t1)) = ray_box(ray, self.lo, self.hi, eps, 0.0, t_max) else {
+            return none;
+        };
+        let Some((root_block, root_treelet)) = self.root else {
+            return none;
+        };
         let Some(root_data) = memo.treelets(self.cache, root_block) else {
             memo.want(root_block, f32::INFINITY, t0);
-            return None;
+            return none;
+        };
+        let Some(&root) = root_data.roots.get(root_treelet as usize) else {
+            return none;
         };
         let mut w = Walk {
             ray,
@@ -440,11 +492,13 @@ impl<'a> Tracer<'a> {
             lasts: Lasts::new(),
             best: Best::None,
             best_t: t_max,
-            t_min,
+            collect,
+            layers: ArrayVec::new(),
+            through: 1.0,
         };
         w.stack.push(Entry {
             data: root_data,
-            node: *root_data.roots.get(root_treelet as usize)?,
+            node: root,
             t0,
             t1,
             lods: 0,
@@ -501,7 +555,7 @@ impl<'a> Tracer<'a> {
             }
         }
         memo.visited.set(memo.visited.get() + visited);
-        w.best.hit(w.best_t)
+        w.finish()
     }
 
     /// The LOD step of [`Tracer::trace_to`], at the LOD node of `at` with split `(axis,
@@ -521,10 +575,6 @@ impl<'a> Tracer<'a> {
         let Some(l) = data.lods.get(lod as usize) else {
             return ControlFlow::Break(());
         };
-        if w.t_min > 0.0 && at.t1 <= w.t_min {
-            // The cell only touches where the ray goes on from: it is the one just left.
-            return ControlFlow::Break(());
-        }
         at.lods = push_last(
             &mut w.lasts,
             LastVoxel {
@@ -556,7 +606,7 @@ impl<'a> Tracer<'a> {
                     Some(p) => Some(proxy_sample(&p.samples, ray))
                         .filter(|s| !s.is_empty())
                         .map(|s| (t0, Best::Proxy(s, l.radius))),
-                    None => own(),
+                    None => opaque(own()),
                 }
             };
             w.offer(found);
@@ -595,7 +645,7 @@ impl<'a> Tracer<'a> {
                 let first = usize::from(first);
                 let list = td.list.get(first..first + usize::from(count));
                 let list = list.unwrap_or(&[]);
-                if let Some((ti, h)) = w.ray.nearest(list, &td.positions, w.t_min, w.best_t) {
+                if let Some((ti, h)) = w.ray.nearest(list, &td.positions, w.best_t) {
                     w.best_t = h.t;
                     w.best = Best::Triangle {
                         data: td,
@@ -607,7 +657,7 @@ impl<'a> Tracer<'a> {
             None => match w.lasts.last() {
                 Some(lv) => {
                     w.memo.want(block, lv.radius, lv.t);
-                    let found = lv.shown(w.ray);
+                    let found = opaque(lv.shown(w.ray));
                     w.offer(found);
                 }
                 None => w.memo.want(block, f32::INFINITY, t0),
@@ -623,10 +673,58 @@ impl<'a> Tracer<'a> {
     }
 }
 
+/// `found` made opaque: a LOD entry shown because the data below it is missing stands in for
+/// that data, and going on behind it would want blocks a full-detail ray never reaches.
+#[inline(always)]
+pub(crate) fn opaque(found: Option<(f32, Best<'_>)>) -> Option<(f32, Best<'_>)> {
+    found.map(|(t, b)| (t, b.opaque()))
+}
+
+impl<'m> Best<'m> {
+    /// The same surface with coverage 1.
+    #[inline(always)]
+    fn opaque(self) -> Best<'m> {
+        match self {
+            Best::Voxel { look, radius } => Best::Voxel {
+                look: VoxelLook {
+                    coverage: 1.0,
+                    ..look
+                },
+                radius,
+            },
+            Best::Plane {
+                normal,
+                colour,
+                radius,
+                shade,
+                ..
+            } => Best::Plane {
+                normal,
+                colour,
+                radius,
+                coverage: 1.0,
+                shade,
+            },
+            other => other,
+        }
+    }
+}
+
 impl Best<'_> {
+    /// The share of what the ray shows that is this surface (1 but for translucent LOD
+    /// entries).
+    #[inline(always)]
+    fn coverage(&self) -> f32 {
+        match self {
+            Best::Voxel { look, .. } => look.coverage,
+            Best::Plane { coverage, .. } => *coverage,
+            _ => 1.0,
+        }
+    }
+
     /// The hit this nearest surface at `t` makes; None for none.
     pub(crate) fn hit(self, t: f32) -> Option<Hit> {
-        let (mut shade, mut coverage, mut exit) = (1.0, 1.0, t);
+        let (mut shade, mut coverage) = (1.0, 1.0);
         let (surface, radius) = match self {
             Best::None => return None,
             Best::Triangle {
@@ -641,12 +739,8 @@ impl Best<'_> {
                 },
                 0.0,
             ),
-            Best::Voxel {
-                look,
-                radius,
-                exit: e,
-            } => {
-                (shade, coverage, exit) = (look.shade, look.coverage, e.max(t));
+            Best::Voxel { look, radius } => {
+                (shade, coverage) = (look.shade, look.coverage);
                 let (normal, colour) = (look.normal, look.colour);
                 (Surface::Voxel { normal, colour }, radius)
             }
@@ -657,9 +751,8 @@ impl Best<'_> {
                 radius,
                 coverage: c,
                 shade: s,
-                exit: e,
             } => {
-                (shade, coverage, exit) = (s, c, e.max(t));
+                (shade, coverage) = (s, c);
                 (Surface::Plane { normal, colour }, radius)
             }
         };
@@ -669,7 +762,6 @@ impl Best<'_> {
             radius,
             shade,
             coverage,
-            exit,
         })
     }
 }

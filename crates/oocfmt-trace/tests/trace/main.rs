@@ -9,7 +9,7 @@ mod hard_cases;
 mod kernels;
 mod malformed;
 mod packets;
+mod prefiltered;
 mod reference;
 mod secondary;
 mod session;
-mod translucent;

@@ -274,9 +274,11 @@ fn a_closed_sphere_leaks_no_light() {
         let (hits, lit, _, _) = lit_hits(&path, &outside, poe, light);
         assert!(hits > 1000);
         assert_eq!(lit, 0, "--poe {poe}: the far side is lit");
-        // From the light's side most of it is lit: the tests above can fail.
+        // From the light's side most of it is lit: the tests above can fail. (At LOD the
+        // first hit of a rim pixel may be a translucent voxel shaded where the ray enters its
+        // cell, which the sphere behind it can shadow: 1698 of 1893 hits lit at --poe 2.)
         let (hits, lit, _, voxels) = lit_hits(&path, &facing, poe, light);
-        assert!(lit > hits * 9 / 10, "{lit} of {hits} lit");
+        assert!(lit > hits * 85 / 100, "{lit} of {hits} lit");
         assert!(poe == 0.0 || voxels > 0, "LOD is in use at --poe {poe}");
     }
 }
