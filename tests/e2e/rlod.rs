@@ -73,14 +73,26 @@ fn every_lod_kind_converts_verifies_and_is_named() {
         // `--unfiltered` writes what 1.1 wrote: the lowest version that describes the file.
         let opaque = format!("mb-{lod}-opaque.oocf");
         run_ok(
-            &["convert", "mb.obj", "-o", &opaque, "--lod", lod, "--unfiltered", "--quiet"],
+            &[
+                "convert",
+                "mb.obj",
+                "-o",
+                &opaque,
+                "--lod",
+                lod,
+                "--unfiltered",
+                "--quiet",
+            ],
             d,
         );
         run_ok(&["verify", "--deep", &opaque], d);
         let s: serde_json::Value =
             serde_json::from_str(&stdout(&run_ok(&["inspect", &opaque, "--json"], d))).unwrap();
         assert_eq!(s["version"], unfiltered, "{lod} --unfiltered");
-        assert!(!s["feature_names"].to_string().contains("LOD_FILTERED"), "{lod}");
+        assert!(
+            !s["feature_names"].to_string().contains("LOD_FILTERED"),
+            "{lod}"
+        );
         let version = "1.2";
         let out = format!("mb-{lod}.oocf");
         convert(d, lod, &out);
@@ -89,7 +101,10 @@ fn every_lod_kind_converts_verifies_and_is_named() {
             serde_json::from_str(&stdout(&run_ok(&["inspect", &out, "--json"], d))).unwrap();
         assert_eq!(s["lod_kinds"], kinds, "{lod}");
         assert_eq!(s["version"], version, "{lod}");
-        assert!(s["feature_names"].to_string().contains("LOD_FILTERED"), "{lod}");
+        assert!(
+            s["feature_names"].to_string().contains("LOD_FILTERED"),
+            "{lod}"
+        );
         let lod_nodes = s["tree"]["lod_nodes"].as_u64().unwrap();
         let rlods: u64 = s["levels"]
             .as_array()

@@ -3,9 +3,10 @@
 //!
 //! - At a LOD node whose enclosing-sphere radius r satisfies r ≤ t_entry · C the ray stops on
 //!   the node's voxel, at the entry distance of the node's cell, with the look of the faces its
-//!   direction sees ([`voxel_look`]). C = poe · 2 tan(fov_y / 2) / image_height is the size of `poe` pixels per
-//!   unit of distance, so the test reads "the voxel's radius is at most `poe` pixels". `poe` 0
-//!   never stops (full detail).
+//!   direction sees (spec §6.3). C = poe · 2 tan(fov_y / 2) / image_height is the size of `poe`
+//!   pixels per unit of distance, so the test reads "the voxel's radius is at most `poe`
+//!   pixels". `poe` 0 never stops (full detail). A voxel or plane that covers only part of its
+//!   cell is translucent: [`Tracer::trace_layers`] goes on behind it (spec §5.1).
 //! - With R-LODs (Yoon et al. 2006, §4.2) the same test uses the R-LOD's error radius, and a
 //!   ray that stops there meets the node's plane: a hit inside the ray's interval in the cell,
 //!   widened by the R-LOD's expansion, ends the ray with the plane's normal and colour; a miss
@@ -52,7 +53,7 @@ pub enum Surface {
         bary: [f32; 3],
     },
     /// A LOD node's voxel as the ray sees it: its only sample, or the blend of the three faces
-    /// the ray's direction looks through ([`voxel_look`]).
+    /// the ray's direction looks through (spec §6.3).
     Voxel {
         /// Unit normal.
         normal: [f32; 3],

@@ -159,6 +159,10 @@ fn an_r_lod_over_a_rough_surface_keeps_its_mean_shade() {
     let mesh = height_field(a, k, 96);
     let fit = rlod::fit(&mesh, &all_triangles(&mesh), unit_cell());
     let want = mean_cosine(a, k);
-    assert!((fit.shade() - want).abs() < 2e-3, "{} against {want}", fit.shade());
+    assert!(
+        (fit.shade() - want).abs() < 2e-3,
+        "{} against {want}",
+        fit.shade()
+    );
     assert!((fit.coverage() - 1.0).abs() < 1e-6, "{}", fit.coverage());
 }

@@ -6,9 +6,7 @@ use oocfmt::records::Voxel;
 use super::chunk::answer_rays;
 use super::top::{finish_top_lod, record_rays, TopLod};
 use crate::kdtree::{build_cell, KdBuildOptions, KdTree, NodeId};
-use crate::lod::{
-    sample_cell, shade, DEFAULT_VOXEL_THRESHOLD, DIAGONAL_RAYS_MAX, FACE_RAYS_MAX,
-};
+use crate::lod::{sample_cell, shade, DEFAULT_VOXEL_THRESHOLD, DIAGONAL_RAYS_MAX, FACE_RAYS_MAX};
 use crate::raycast::intersect_triangle;
 use oocfmt_meshio::mesh::{Bounds, Mesh};
 
