@@ -281,7 +281,12 @@ impl Deviation {
         let (sn, sd) = plane.stored_plane();
         let stored_normal = sn.map(f64::from);
         Deviation {
-            plane: *plane,
+            // This piece's own sums: the plane may carry those of pieces measured before.
+            plane: PlaneFit {
+                projected: 0.0,
+                cosine_weighted: 0.0,
+                ..*plane
+            },
             point,
             stored_normal,
             shift: dot(stored_normal, frame.centre) - f64::from(sd),
