@@ -72,6 +72,11 @@ pub struct RenderOptions {
     pub ao: u32,
     /// How far ambient-occlusion rays look; None: [`default_distance`] of the scene.
     pub ao_distance: Option<f32>,
+    /// Show LOD entries that cover part of their cell as translucent, composited front to back
+    /// over what lies behind (spec §5.1); off, every LOD entry ends its ray. On measurements
+    /// the layers cost more time than choosing a lower PoE does for the same error
+    /// (`docs/benchmarks.md`), so it is off by default; thin parts then swell to their cells.
+    pub translucent: bool,
 }
 
 impl RenderOptions {
@@ -84,6 +89,7 @@ impl RenderOptions {
         light: None,
         ao: 0,
         ao_distance: None,
+        translucent: false,
     };
 
     fn check(&self) -> Result<(), TraceError> {
@@ -427,7 +433,7 @@ impl<'a> FrameJob<'a> {
         memo: &mut Memo,
         secondary: &mut Secondary,
     ) -> [f32; 3] {
-        if !hit.is_translucent() {
+        if !(self.opts.translucent && hit.is_translucent()) {
             return self.lighting.colour(hit, ray, seed, memo, secondary);
         }
         // The packet found the first surface; one walk of the single ray finds every one.

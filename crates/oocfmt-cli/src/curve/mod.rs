@@ -90,6 +90,11 @@ pub struct Args {
     /// Render threads (default: all cores)
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Show LOD entries that cover part of their cell (pre-filtered files, spec §5.1) as
+    /// translucent, composited over what lies behind: thin parts keep their size, at a cost in
+    /// time that exceeds choosing a lower --poe for the same error on the measured scenes
+    #[arg(long)]
+    pub translucent: bool,
 }
 
 /// The PoE values of `--poe`.
@@ -432,6 +437,7 @@ fn measure(
 ) -> Result<(Row, Image), CliError> {
     let opts = RenderOptions {
         poe,
+        translucent: a.translucent,
         ..RenderOptions::default()
     };
     let mut settle_frames = 0;

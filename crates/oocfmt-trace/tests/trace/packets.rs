@@ -388,9 +388,10 @@ fn a_render_gives_the_depth_of_the_single_ray_path() {
     let cache = BlockingCache::new(Arc::clone(&scene), usize::MAX);
     // Odd sizes: ragged tiles and packets at the edges.
     for cam in cameras(&scene, 83, 45) {
-        for poe in [0.0f32, 2.0] {
+        for (poe, translucent) in [(0.0f32, false), (2.0, false), (2.0, true)] {
             let opts = RenderOptions {
                 poe,
+                translucent,
                 ..RenderOptions::DEFAULT
             };
             let (img, stats) = render(&scene, &cache, &cam, &opts).unwrap();
@@ -406,7 +407,7 @@ fn a_render_gives_the_depth_of_the_single_ray_path() {
                 for x in 0..cam.width {
                     let ray = frame.ray(x, y);
                     let hit = tracer.trace(&ray, &memo);
-                    if hit.as_ref().is_some_and(|h| h.is_translucent()) {
+                    if translucent && hit.as_ref().is_some_and(|h| h.is_translucent()) {
                         // The renderer walks such a ray once more for what lies behind.
                         tracer.trace_layers(&ray, f32::INFINITY, &memo);
                     }

@@ -110,12 +110,23 @@ fn centre_colour(path: &Path, poe: f32, spp: u32) -> ([f32; 3], u64) {
 }
 
 fn centre_colour_from(path: &Path, camera: &Camera, poe: f32, spp: u32) -> ([f32; 3], u64) {
+    centre_colour_with(path, camera, poe, spp, true)
+}
+
+fn centre_colour_with(
+    path: &Path,
+    camera: &Camera,
+    poe: f32,
+    spp: u32,
+    translucent: bool,
+) -> ([f32; 3], u64) {
     let scene = Arc::new(Scene::open(path).unwrap());
     let cache = BlockingCache::new(Arc::clone(&scene), usize::MAX);
     let opts = RenderOptions {
         poe,
         spp,
         background: BACKGROUND,
+        translucent,
         ..RenderOptions::default()
     };
     let (image, stats) = render(&scene, &cache, camera, &opts).unwrap();
@@ -156,6 +167,9 @@ fn a_half_covered_voxel_shows_half_of_what_lies_behind() {
     let (lod, voxels) = centre_colour(&filtered, 48.0, 1);
     assert_eq!(voxels, u64::from(SIZE * SIZE));
     assert_near(lod, half, 0.04, "filtered voxels");
+    // Shown opaque (the default), the same voxels paint the strips' shade everywhere.
+    let (lod, _) = centre_colour_with(&filtered, &camera(), 48.0, 1, false);
+    assert_near(lod, DEFAULT_ALBEDO, 0.04, "filtered voxels shown opaque");
     // Opaque voxels paint the strips' shade over the whole square.
     let opaque = convert_comb(dir.path(), LodKinds::VOXEL);
     let (lod, voxels) = centre_colour(&opaque, 48.0, 1);
