@@ -19,7 +19,7 @@ import os
 import sys
 import tempfile
 
-from benchlib import machine, require_binary, run
+from benchlib import generated_scenes, machine, require_binary, run
 
 
 def psnr(v):
@@ -85,12 +85,7 @@ def main():
     work = a.dir or tempfile.mkdtemp(prefix="oocfmt-curve-")
     os.makedirs(work, exist_ok=True)
     print(f"machine: {machine()}")
-    for spec in a.scenes.split(","):
-        scene, _, tris = spec.partition(":")
-        size = int(float(tris or "1e6"))
-        stem = os.path.join(work, f"{scene}-{size}")
-        if not os.path.exists(stem + ".obj"):
-            run(["gen", scene, "--tris", str(size), "-o", stem + ".obj", "--quiet"])
+    for scene, size, stem in generated_scenes(a.scenes, work):
         model = f"{stem}-{a.codec.replace(':', '')}.oocf"
         if not os.path.exists(model):
             run(["convert", stem + ".obj", "-o", model, "--codec", a.codec, "--quiet"])

@@ -25,7 +25,7 @@ import sys
 import tempfile
 import time
 
-from benchlib import machine, require_binary, run
+from benchlib import generated_scenes, machine, require_binary, run
 
 # The framing direction of `Camera::framing` (crates/oocfmt-trace/src/camera.rs).
 FRAMING = (0.55, 0.45, 0.7)
@@ -124,13 +124,8 @@ def main():
     work = a.dir or tempfile.mkdtemp(prefix="oocfmt-lod-")
     os.makedirs(work, exist_ok=True)
     print(f"machine: {machine()}")
-    for spec in a.scenes.split(","):
-        scene, _, tris = spec.partition(":")
-        size = int(float(tris or "1e6"))
-        stem = os.path.join(work, f"{scene}-{size}")
+    for scene, size, stem in generated_scenes(a.scenes, work):
         obj = stem + ".obj"
-        if not os.path.exists(obj):
-            run(["gen", scene, "--tris", str(size), "-o", obj, "--quiet"])
         files = {}
         for kind, unfiltered in (("opaque", True), ("pre-filtered", False)):
             path = stem + ("-opaque" if unfiltered else "-filtered") + ".oocf"

@@ -24,6 +24,18 @@ def run(args):
     return r.stdout
 
 
+def generated_scenes(scenes, work):
+    """For each SCENE:TRIANGLES of the comma-separated `scenes` (scenes of `oocfmt gen`), the
+    scene, its triangle count and the path stem in `work`, with `STEM.obj` generated if missing."""
+    for spec in scenes.split(","):
+        scene, _, tris = spec.partition(":")
+        size = int(float(tris or "1e6"))
+        stem = os.path.join(work, f"{scene}-{size}")
+        if not os.path.exists(stem + ".obj"):
+            run(["gen", scene, "--tris", str(size), "-o", stem + ".obj", "--quiet"])
+        yield scene, size, stem
+
+
 def machine():
     cpu = platform.processor() or "unknown CPU"
     try:
