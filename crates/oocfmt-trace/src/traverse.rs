@@ -207,9 +207,8 @@ impl<'m> Walk<'_, 'm> {
         let Some((t, s)) = found.filter(|&(t, _)| t < self.best_t) else {
             return;
         };
-        let alpha = s.coverage();
-        if self.collect && alpha < 1.0 && !self.layers.is_full() {
-            let through = self.through * (1.0 - alpha.max(0.0));
+        if self.collect && !self.layers.is_full() && s.coverage() < 1.0 {
+            let through = self.through * (1.0 - s.coverage().max(0.0));
             if through >= MIN_TRANSMITTANCE {
                 self.layers.push((t, s));
                 self.through = through;
