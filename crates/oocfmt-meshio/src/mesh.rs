@@ -132,7 +132,7 @@ pub enum MeshError {
     /// A per-vertex or per-triangle attribute array has the wrong length.
     #[error("{what} has {len} entries, expected {expected}")]
     AttributeLength {
-        /// Which array: `normals`, `colours` or `materials`.
+        /// Which array: `normals`, `colours`, `materials` or `part ids`.
         what: &'static str,
         /// Its length.
         len: usize,
@@ -148,6 +148,24 @@ pub enum MeshError {
         material: u16,
         /// How many materials the table holds.
         materials: usize,
+    },
+    /// A triangle's part id is past [`Mesh::parts`].
+    #[error("triangle {triangle} is in part {part}, but the scene has {parts} parts")]
+    PartOutOfRange {
+        /// The triangle's index.
+        triangle: usize,
+        /// The part id it has.
+        part: u32,
+        /// How many parts the scene has.
+        parts: usize,
+    },
+    /// A part's parent is not a part before it.
+    #[error("part {part} names parent {parent}, which is not a part before it")]
+    PartParent {
+        /// The part's index.
+        part: usize,
+        /// The parent it names.
+        parent: u32,
     },
     /// More triangles than 32-bit triangle ids can number.
     #[error("{triangles} triangles: at most {max} fit 32-bit triangle ids")]
@@ -175,6 +193,35 @@ pub struct Mesh {
     pub materials: Option<Vec<u16>>,
     /// The materials `materials` indexes.
     pub material_table: Vec<Material>,
+    /// One index into `parts` per triangle, when the scene has more than one part.
+    pub part_ids: Option<Vec<u32>>,
+    /// The scene's parts (assembly nodes), parents before children; empty when the input
+    /// named none.
+    pub parts: Vec<PartDef>,
+}
+
+/// A named node of the input's assembly (an OBJ `o`/`g`, a glTF node with a mesh, an STL
+/// `solid`, an input file), as an importer declares it.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct PartDef {
+    /// The name the input gives it (may be empty).
+    pub name: String,
+    /// The index [`crate::import::TriangleSink::add_part`] returned for its parent; always lower than its own.
+    /// `None`: a top-level part (under the file's part when several files are read).
+    pub parent: Option<u32>,
+    /// The index of the file it came from in [`crate::import::ImportReport::files`]; filled in by the sink.
+    pub source: Option<u32>,
+}
+
+impl PartDef {
+    /// A part named `name` under `parent`.
+    pub fn new(name: impl Into<String>, parent: Option<u32>) -> PartDef {
+        PartDef {
+            name: name.into(),
+            parent,
+            source: None,
+        }
+    }
 }
 
 impl Mesh {
@@ -225,6 +272,31 @@ impl Mesh {
                     vertices,
                 });
             }
+        }
+        if let Some(ids) = &self.part_ids {
+            check_len("part ids", ids.len(), self.triangles.len())?;
+            if let Some((triangle, &part)) = ids
+                .iter()
+                .enumerate()
+                .find(|(_, &p)| p as usize >= self.parts.len())
+            {
+                return Err(MeshError::PartOutOfRange {
+                    triangle,
+                    part,
+                    parts: self.parts.len(),
+                });
+            }
+        }
+        if let Some((part, def)) = self
+            .parts
+            .iter()
+            .enumerate()
+            .find(|(i, d)| d.parent.is_some_and(|p| p as usize >= *i))
+        {
+            return Err(MeshError::PartParent {
+                part,
+                parent: def.parent.unwrap_or_default(),
+            });
         }
         if let Some(materials) = &self.materials {
             check_len("materials", materials.len(), self.triangles.len())?;

@@ -86,6 +86,7 @@ pub fn demo_scene(target_triangles: usize) -> Mesh {
                 diffuse: [0.9, 0.85, 0.3],
             },
         ],
+        ..Mesh::default()
     }
 }
 

@@ -22,7 +22,7 @@ use crate::layout::{LayoutError, LayoutOptions};
 use crate::lod::rlod::{Deviation, PlaneFit};
 use crate::lod::{mean_vertex_colour, shade, triangle_area, LodData, Shade};
 use crate::raycast::{clip_to_box, Ray, Tracer};
-use oocfmt_meshio::import::{InputTriangle, Location, MeshSink, PartSchema, TriangleSink};
+use oocfmt_meshio::import::{ChunkSchema, InputTriangle, Location, MeshSink, TriangleSink};
 use oocfmt_meshio::mesh::{Bounds, Mesh};
 use std::collections::BTreeMap;
 
@@ -31,7 +31,7 @@ use rayon::prelude::*;
 
 /// The scene-wide facts every chunk is built with.
 pub struct SceneFacts {
-    pub schema: PartSchema,
+    pub schema: ChunkSchema,
     /// Scene material index of each importer material (`None`: no material), when the scene
     /// has materials.
     pub material_index: Option<rustc_hash::FxHashMap<Option<u32>, u32>>,
@@ -173,7 +173,7 @@ impl BlockSpill {
 /// Loads a chunk's spill file as a mesh in the scene's schema; returns it with, for each
 /// triangle, whether this is its primary copy.
 fn load_mesh(chunk: &Chunk, facts: &SceneFacts) -> Result<(Mesh, Vec<bool>), OocError> {
-    let mut sink = MeshSink::for_part(facts.schema.clone());
+    let mut sink = MeshSink::for_chunk(facts.schema.clone());
     let mut primary = Vec::new();
     let at = Location::file(chunk.path.display().to_string());
     for record in SoupReader::open(&chunk.path, chunk.count)? {

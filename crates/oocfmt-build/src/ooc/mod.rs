@@ -34,7 +34,7 @@ use crate::lod::rlod::PlaneFit;
 use crate::lod::LodData;
 use crate::progress::Progress;
 use chunk::{BlockSpill, ChunkBuilder, ChunkCounts, ChunkOut, SceneFacts};
-use oocfmt_meshio::import::{compact_materials, InputTriangle, PartSchema};
+use oocfmt_meshio::import::{compact_materials, ChunkSchema, InputTriangle};
 use soup::Soup;
 
 /// Why the out-of-core build, or the spill files it and the importer use, failed.
@@ -195,10 +195,11 @@ impl<'a> OocBuild<'a> {
             six_sample_voxels: false,
         };
         let facts = SceneFacts {
-            schema: PartSchema {
+            schema: ChunkSchema {
                 normals: soup.normals,
                 colours: soup.colours,
                 materials: materials.then(|| table.clone()),
+                part_ids: soup.parts.len() > 1,
             },
             material_index: materials.then(|| {
                 soup.used_materials

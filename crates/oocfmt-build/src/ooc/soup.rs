@@ -1,4 +1,4 @@
-//! Triangle soup: the spill files of the out-of-core build. Every triangle is one fixed 92-byte
+//! Triangle soup: the spill files of the out-of-core build. Every triangle is one fixed 96-byte
 //! little-endian record holding its own corners and attributes, so a file can be split, counted
 //! and streamed without any index into other data.
 //!
@@ -9,6 +9,7 @@
 //! | 72–83 | 3 × RGBA8 corner colours (zero without) |
 //! | 84–87 | u32 material as the importer numbered it, `u32::MAX` for none |
 //! | 88–91 | u32 flags: bit 0 normals, bit 1 colours, bit 2 a copy that is not the primary |
+//! | 92–95 | u32 part as the importer numbered it, `u32::MAX` for none |
 
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
@@ -19,14 +20,15 @@ use oocfmt::metadata::Material;
 use super::tee::MeshTee;
 use super::OocError;
 use oocfmt_meshio::import::{
-    ImportError, ImportReport, InputTriangle, Intake, Intaken, Location, MeshSink, Store,
+    ImportError, ImportReport, InputTriangle, Intake, Intaken, Location, MeshSink, PartDef, Store,
     TriangleSink,
 };
 use oocfmt_meshio::mesh::{Bounds, Mesh};
 
 /// Bytes of one triangle record (the table above).
-pub const RECORD_LEN: usize = 92;
+pub const RECORD_LEN: usize = 96;
 const NO_MATERIAL: u32 = u32::MAX;
+const NO_PART: u32 = u32::MAX;
 const HAS_NORMALS: u32 = 1;
 const HAS_COLOURS: u32 = 2;
 const NOT_PRIMARY: u32 = 4;
@@ -72,6 +74,7 @@ impl SoupTriangle {
             flags |= NOT_PRIMARY;
         }
         r[88..92].copy_from_slice(&flags.to_le_bytes());
+        r[92..96].copy_from_slice(&t.part.unwrap_or(NO_PART).to_le_bytes());
         r
     }
 
@@ -88,12 +91,14 @@ impl SoupTriangle {
         };
         let flags = u32::from_le_bytes(word(22));
         let material = u32::from_le_bytes(word(21));
+        let part = u32::from_le_bytes(word(23));
         SoupTriangle {
             triangle: InputTriangle {
                 positions: corners(0),
                 normals: (flags & HAS_NORMALS != 0).then(|| corners(9)),
                 colours: (flags & HAS_COLOURS != 0).then(|| std::array::from_fn(|c| word(18 + c))),
                 material: (material != NO_MATERIAL).then_some(material),
+                part: (part != NO_PART).then_some(part),
                 hint: None,
             },
             primary: flags & NOT_PRIMARY == 0,
@@ -203,6 +208,8 @@ pub struct Soup {
     /// The materials triangles use (`None`: no material), in order of first use: the order the
     /// in-memory sink numbers them in, so both paths give the same material table.
     pub used_materials: Vec<Option<u32>>,
+    /// The parts as the importers declared them (see [`Intaken::parts`]).
+    pub parts: Vec<PartDef>,
     /// Some triangle has vertex normals.
     pub normals: bool,
     /// Some triangle has vertex colours.
@@ -221,7 +228,7 @@ impl Soup {
         if let Some(mesh) = self
             .tee
             .take()
-            .and_then(|t| t.finish(self.materials.clone()))
+            .and_then(|t| t.finish(self.materials.clone(), self.parts.clone()))
         {
             return Ok(mesh?);
         }
@@ -233,7 +240,8 @@ impl Soup {
         for r in SoupReader::open(&self.path, self.count)? {
             sink.push(r?.triangle, &at)?;
         }
-        Ok(sink.finish()?.0)
+        let store = sink.finish_intake()?.store;
+        Ok(store.into_mesh(self.materials.clone(), self.parts.clone())?)
     }
 }
 
@@ -293,6 +301,7 @@ pub fn finish_soup(sink: SoupSink) -> Result<Soup, OocError> {
         store,
         table,
         used_order,
+        parts,
         report,
     } = sink.finish_intake()?;
     let (path, count) = store.writer.finish()?;
@@ -303,6 +312,7 @@ pub fn finish_soup(sink: SoupSink) -> Result<Soup, OocError> {
         bounds: store.bounds,
         materials: table,
         used_materials: used_order,
+        parts,
         normals: store.normals,
         colours: store.colours,
         report,

@@ -88,7 +88,11 @@ impl MeshTee {
 
     /// The mesh of every triangle pushed, numbered as [`oocfmt_meshio::import::MeshSink`] numbers
     /// them, with the importers' material `table`; `None` when the thread gave up.
-    pub fn finish(mut self, table: Vec<Material>) -> Option<Result<Mesh, ImportError>> {
+    pub fn finish(
+        mut self,
+        table: Vec<Material>,
+        parts: Vec<oocfmt_meshio::import::PartDef>,
+    ) -> Option<Result<Mesh, ImportError>> {
         let sender = self.sender.take()?;
         let last = std::mem::take(&mut self.batch);
         if !last.is_empty() && sender.send(last).is_err() {
@@ -97,7 +101,7 @@ impl MeshTee {
         }
         drop(sender);
         let store = self.worker.take()?.join().ok()?;
-        (store.triangle_count() as u64 == self.taken).then(|| store.into_mesh(table))
+        (store.triangle_count() as u64 == self.taken).then(|| store.into_mesh(table, parts))
     }
 }
 
@@ -185,9 +189,9 @@ mod tests {
             }
             tee
         };
-        assert!(filled(11).finish(Vec::new()).is_none());
+        assert!(filled(11).finish(Vec::new(), Vec::new()).is_none());
         let tee = filled(10);
-        let mesh = tee.finish(Vec::new()).and_then(Result::ok);
+        let mesh = tee.finish(Vec::new(), Vec::new()).and_then(Result::ok);
         assert_eq!(
             mesh.map(|m| (m.triangles.len(), m.positions.len())),
             Some((10, 3))

@@ -12,8 +12,12 @@ use std::fmt;
 
 use serde::Serialize;
 
+pub use crate::mesh::PartDef;
 pub use placement::{PlacementReport, Recentre};
-pub use sink::{compact_materials, Intake, Intaken, MeshSink, MeshStore, PartSchema, Store};
+pub use sink::{
+    compact_materials, ChunkSchema, Intake, Intaken, MeshSink, MeshStore, Store, MAX_PARTS,
+    UNNAMED_PART,
+};
 
 use oocfmt::metadata::Material;
 
@@ -84,6 +88,9 @@ pub struct InputTriangle {
     pub colours: Option<[[u8; 4]; 3]>,
     /// The index [`TriangleSink::add_material`] returned for the triangle's material.
     pub material: Option<u32>,
+    /// The index [`TriangleSink::add_part`] returned for the part (assembly node) the triangle
+    /// belongs to; `None`: the part of the file being read, if any.
+    pub part: Option<u32>,
     /// The importer's own numbers of the corners' vertices, when it has them: a hint that
     /// spares the in-memory sink a hash lookup for a vertex met before. It never changes
     /// which vertex a corner becomes, and spill files do not keep it.
@@ -98,6 +105,7 @@ impl InputTriangle {
             normals: None,
             colours: None,
             material: None,
+            part: None,
             hint: None,
         }
     }
@@ -257,6 +265,9 @@ pub enum ImportError {
 pub trait TriangleSink {
     /// Adds a material; returns the index that triangles give as `material`.
     fn add_material(&mut self, material: Material) -> Result<u32, ImportError>;
+    /// Declares a part; returns the index that triangles give as `part` and children as
+    /// `parent`. A parent that is not an index returned before is an error.
+    fn add_part(&mut self, part: PartDef) -> Result<u32, ImportError>;
     /// One triangle. The sink drops (and counts) or refuses degenerate ones.
     fn push(&mut self, triangle: InputTriangle, at: &Location) -> Result<(), ImportError>;
     /// A triangle the importer could not even form (an index out of range, say).

@@ -395,6 +395,7 @@ impl<'o> Obj<'o> {
                 normals,
                 colours,
                 material,
+                part: None,
                 hint: match corners.map(|c| u32::try_from(c.vertex).ok()) {
                     [Some(a), Some(b), Some(c)] => Some([a, b, c]),
                     _ => None,

@@ -212,6 +212,7 @@ impl Placement {
 pub struct BoundsSink {
     bounds: Option<([f64; 3], [f64; 3])>,
     materials: u32,
+    parts: u32,
 }
 
 impl BoundsSink {
@@ -225,6 +226,12 @@ impl TriangleSink for BoundsSink {
     fn add_material(&mut self, _material: Material) -> Result<u32, ImportError> {
         let index = self.materials;
         self.materials = self.materials.saturating_add(1);
+        Ok(index)
+    }
+
+    fn add_part(&mut self, _part: super::PartDef) -> Result<u32, ImportError> {
+        let index = self.parts;
+        self.parts = self.parts.saturating_add(1);
         Ok(index)
     }
 

@@ -7,12 +7,19 @@ use oocfmt::metadata::Material;
 
 use super::placement::Placement;
 use super::{
-    DropReason, ImportError, ImportReport, InputTriangle, Location, Skipped, TriangleSink,
+    DropReason, ImportError, ImportReport, InputTriangle, Location, PartDef, Skipped, TriangleSink,
 };
 use crate::mesh::Mesh;
 
 /// Material indices in triangle blocks are 16-bit (spec §8).
 const MAX_MATERIALS: usize = 1 << 16;
+
+/// The most parts a scene may declare (spec §12).
+pub const MAX_PARTS: u32 = 1 << 24;
+
+/// The name of the part given to triangles that the input put in no part, in a scene that
+/// has parts.
+pub const UNNAMED_PART: &str = "(no part)";
 
 /// The grey given to triangles without a material when others have one.
 const DEFAULT_MATERIAL: [f32; 3] = [0.8, 0.8, 0.8];
@@ -43,18 +50,21 @@ impl Vert {
     }
 }
 
-/// What a mesh holding part of a scene must store because the whole scene has it, so every
-/// part's triangle blocks carry the same attributes.
+/// What a mesh holding a chunk of a scene must store because the whole scene has it, so every
+/// chunk's triangle blocks carry the same attributes.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct PartSchema {
-    /// The scene has vertex normals: the part's mesh gets them even if its triangles have none.
+pub struct ChunkSchema {
+    /// The scene has vertex normals: the chunk's mesh gets them even if its triangles have none.
     pub normals: bool,
-    /// The scene has vertex colours: the part's mesh gets them (white where the input gave
+    /// The scene has vertex colours: the chunk's mesh gets them (white where the input gave
     /// none).
     pub colours: bool,
     /// The scene's material table; triangles then give indices into it as their material, and
-    /// the table is kept as it is instead of being compacted to what the part uses.
+    /// the table is kept as it is instead of being compacted to what the chunk uses.
     pub materials: Option<Vec<Material>>,
+    /// The scene has more than one part: the chunk's mesh keeps a part id per triangle (the
+    /// scene-wide ids its triangles give).
+    pub part_ids: bool,
 }
 
 /// What a sink does with the triangles the policy admits.
@@ -75,6 +85,14 @@ pub struct Intake<S> {
     used_order: Vec<Option<u32>>,
     /// Materials as the importers added them.
     table: Vec<Material>,
+    /// Parts as the importers (and [`Intake::with_file_parts`]) declared them.
+    parts: Vec<PartDef>,
+    /// Each input file becomes a part above the parts it declares.
+    file_parts: bool,
+    /// The part of the file being read, under `file_parts`.
+    file_part: Option<u32>,
+    /// Some triangle was stored without a part.
+    unparted: bool,
     report: ImportReport,
     store: S,
 }
@@ -87,6 +105,9 @@ pub struct Intaken<S> {
     pub table: Vec<Material>,
     /// The materials triangles use (`None`: no material), in order of first use.
     pub used_order: Vec<Option<u32>>,
+    /// The parts as declared, parents before children; empty when the input named none. Every
+    /// triangle stored has a part index below its length when it is not empty.
+    pub parts: Vec<PartDef>,
     /// The import report, its placement figures filled in.
     pub report: ImportReport,
 }
@@ -100,9 +121,27 @@ impl<S> Intake<S> {
             used: HashSet::default(),
             used_order: Vec::new(),
             table: Vec::new(),
+            parts: Vec::new(),
+            file_parts: false,
+            file_part: None,
+            unparted: false,
             report: ImportReport::default(),
             store,
         }
+    }
+
+    /// Makes each input file a part (named by its path as displayed) above the parts it
+    /// declares, and the part of its triangles that declare none: for imports of several files.
+    pub fn with_file_parts(self, on: bool) -> Intake<S> {
+        Intake {
+            file_parts: on,
+            ..self
+        }
+    }
+
+    /// The parts declared so far.
+    pub fn parts(&self) -> &[PartDef] {
+        &self.parts
     }
 
     /// Stores positions relative to `origin` (world = origin + stored).
@@ -119,8 +158,13 @@ impl<S> Intake<S> {
         &self.report
     }
 
-    /// Ends the import; fails when no triangle was kept.
-    pub fn finish_intake(self) -> Result<Intaken<S>, ImportError> {
+    /// Ends the import; fails when no triangle was kept. When parts were declared and some
+    /// triangles have none, a last top-level part [`UNNAMED_PART`] is added for them.
+    pub fn finish_intake(mut self) -> Result<Intaken<S>, ImportError> {
+        if !self.parts.is_empty() && self.unparted {
+            self.file_part = None;
+            self.declare_part(PartDef::new(UNNAMED_PART, None))?;
+        }
         let mut report = self.report;
         report.placement = self.placement.report();
         if report.triangles_out == 0 {
@@ -132,8 +176,36 @@ impl<S> Intake<S> {
             store: self.store,
             table: self.table,
             used_order: self.used_order,
+            parts: self.parts,
             report,
         })
+    }
+
+    /// [`TriangleSink::add_part`], for any store.
+    fn declare_part(&mut self, mut part: PartDef) -> Result<u32, ImportError> {
+        let next = self.parts.len();
+        if part.parent.is_some_and(|p| p as usize >= next) {
+            return Err(ImportError::Parse {
+                at: Location::default(),
+                message: format!(
+                    "part {:?} names parent {:?}, which is not a part declared before it",
+                    part.name, part.parent
+                ),
+            });
+        }
+        let index =
+            u32::try_from(next)
+                .ok()
+                .filter(|&p| p < MAX_PARTS)
+                .ok_or(ImportError::Limit {
+                    at: Location::default(),
+                    what: "parts".into(),
+                    limit: u64::from(MAX_PARTS),
+                })?;
+        part.parent = part.parent.or(self.file_part);
+        part.source = self.report.files.len().checked_sub(1).map(|f| f as u32);
+        self.parts.push(part);
+        Ok(index)
     }
 
     fn drop_or_fail(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError> {
@@ -162,7 +234,12 @@ impl<S: Store> TriangleSink for Intake<S> {
             })
     }
 
-    fn push(&mut self, t: InputTriangle, at: &Location) -> Result<(), ImportError> {
+    fn add_part(&mut self, part: PartDef) -> Result<u32, ImportError> {
+        self.declare_part(part)
+    }
+
+    fn push(&mut self, mut t: InputTriangle, at: &Location) -> Result<(), ImportError> {
+        t.part = t.part.or(self.file_part);
         if let Some(reason) = DropReason::classify(&t.positions) {
             return self.drop_or_fail(reason, at);
         }
@@ -185,6 +262,7 @@ impl<S: Store> TriangleSink for Intake<S> {
             }
             self.used_order.push(t.material);
         }
+        self.unparted |= t.part.is_none();
         self.store.store(t, at)?;
         self.report.triangles_in += 1;
         self.report.triangles_out += 1;
@@ -205,6 +283,10 @@ impl<S: Store> TriangleSink for Intake<S> {
 
     fn begin_file(&mut self, path: &str) {
         self.report.files.push(path.to_string());
+        self.file_part = None;
+        if self.file_parts {
+            self.file_part = self.declare_part(PartDef::new(path, None)).ok();
+        }
     }
 
     fn place(&mut self, exact: [f64; 3]) -> [f32; 3] {
@@ -215,7 +297,7 @@ impl<S: Store> TriangleSink for Intake<S> {
 /// Keeps admitted triangles as a de-duplicated in-memory mesh.
 #[derive(Default)]
 pub struct MeshStore {
-    part: Option<PartSchema>,
+    part: Option<ChunkSchema>,
     verts: Vec<Vert>,
     index: HashMap<[u32; 8], u32>,
     /// By importer vertex number ([`InputTriangle::hint`]): the mesh vertex it last became.
@@ -224,6 +306,8 @@ pub struct MeshStore {
     by_hint: Vec<u32>,
     triangles: Vec<[u32; 3]>,
     materials: Vec<Option<u32>>,
+    /// Each triangle's part as the importer gave it (`None`: none).
+    parts: Vec<Option<u32>>,
 }
 
 /// The in-memory sink.
@@ -236,7 +320,7 @@ impl Intake<MeshStore> {
     }
 
     /// A sink for part of a scene whose attributes are fixed by `schema`.
-    pub fn for_part(schema: PartSchema) -> MeshSink {
+    pub fn for_chunk(schema: ChunkSchema) -> MeshSink {
         Intake::with_store(
             false,
             MeshStore {
@@ -251,10 +335,11 @@ impl Intake<MeshStore> {
         let Intaken {
             store,
             table,
+            parts,
             report,
             ..
         } = self.finish_intake()?;
-        Ok((store.into_mesh(table)?, report))
+        Ok((store.into_mesh(table, parts)?, report))
     }
 }
 
@@ -297,9 +382,17 @@ impl MeshStore {
         self.triangles.len()
     }
 
-    /// The indexed mesh of what was stored, with `table` as its materials.
-    pub fn into_mesh(self, table: Vec<Material>) -> Result<Mesh, ImportError> {
+    /// The indexed mesh of what was stored, with `table` as its materials and `parts` as its
+    /// parts (from [`Intaken::parts`]: triangles without a part get the last one).
+    pub fn into_mesh(self, table: Vec<Material>, parts: Vec<PartDef>) -> Result<Mesh, ImportError> {
         let part = self.part.unwrap_or_default();
+        let unnamed = parts.len().saturating_sub(1) as u32;
+        let part_ids = (part.part_ids || parts.len() > 1).then(|| {
+            self.parts
+                .iter()
+                .map(|p| p.unwrap_or(unnamed))
+                .collect::<Vec<u32>>()
+        });
         let any_normals = part.normals || self.verts.iter().any(|v| v.normal.is_some());
         let any_colours = part.colours || self.verts.iter().any(|v| v.colour.is_some());
         let any_materials = self.materials.iter().any(Option::is_some);
@@ -347,6 +440,8 @@ impl MeshStore {
             mesh.materials = Some(materials);
             mesh.material_table = table;
         }
+        mesh.part_ids = part_ids;
+        mesh.parts = parts;
         Ok(mesh)
     }
 }
@@ -416,6 +511,7 @@ impl Store for MeshStore {
         }
         self.triangles.push(tri);
         self.materials.push(t.material);
+        self.parts.push(t.part);
         Ok(())
     }
 }

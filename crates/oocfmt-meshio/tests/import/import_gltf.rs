@@ -802,6 +802,7 @@ fn a_file_without_scenes_imports_its_root_nodes() {
 /// Records what the importer sends, materials included.
 #[derive(Default)]
 struct Recording {
+    parts: Vec<oocfmt_meshio::import::PartDef>,
     materials: Vec<Material>,
     triangles: Vec<InputTriangle>,
 }
@@ -810,6 +811,10 @@ impl TriangleSink for Recording {
     fn add_material(&mut self, material: Material) -> Result<u32, ImportError> {
         self.materials.push(material);
         Ok(self.materials.len() as u32 - 1)
+    }
+    fn add_part(&mut self, part: oocfmt_meshio::import::PartDef) -> Result<u32, ImportError> {
+        self.parts.push(part);
+        Ok(self.parts.len() as u32 - 1)
     }
     fn push(&mut self, triangle: InputTriangle, _: &Location) -> Result<(), ImportError> {
         self.triangles.push(triangle);

@@ -63,6 +63,7 @@ fn error_text(r: Result<impl std::fmt::Debug, ImportError>) -> String {
 /// Everything an importer tells its sink, as told.
 #[derive(Default)]
 struct Recorder {
+    parts: Vec<oocfmt_meshio::import::PartDef>,
     files: Vec<String>,
     materials: Vec<Material>,
     triangles: Vec<(InputTriangle, Location)>,
@@ -76,6 +77,10 @@ impl TriangleSink for Recorder {
     fn add_material(&mut self, material: Material) -> Result<u32, ImportError> {
         self.materials.push(material);
         Ok(self.materials.len() as u32 - 1)
+    }
+    fn add_part(&mut self, part: oocfmt_meshio::import::PartDef) -> Result<u32, ImportError> {
+        self.parts.push(part);
+        Ok(self.parts.len() as u32 - 1)
     }
     fn push(&mut self, triangle: InputTriangle, at: &Location) -> Result<(), ImportError> {
         if self.fail_on_push {

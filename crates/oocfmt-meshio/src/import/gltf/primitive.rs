@@ -326,6 +326,7 @@ pub(super) fn emit(
             normals: r.corner_normals(&v, normal_matrix),
             colours: r.corner_colours(&v),
             material,
+            part: None,
             hint: None,
         };
         if mirrored {
