@@ -14,9 +14,9 @@ use std::sync::Arc;
 use oocfmt::checksum::{crc32c, Crc32c};
 use oocfmt::codec::decode_into;
 use oocfmt::directory::{self, BlockEntry};
-use oocfmt::records::triangle::oct_decode;
-use oocfmt::records::{LodKinds, Node, TreeletBlock, TriangleBlock};
-use oocfmt::summary::survey_block;
+use oocfmt::records::triangle::{oct_decode, part_id_width, ATTR_PART_WIDTH_SHIFT};
+use oocfmt::records::{LodKinds, Node, TreeletBlock, TriangleBlock, PART_WORD_LEN};
+use oocfmt::summary::{survey_block, BlockSchema};
 use oocfmt::verify::{verify, Depth, VerifyOptions};
 use oocfmt::{header, trailer, BlockKind, Checksums, Codec, CodecId, ReadOptions, Reader};
 
@@ -78,20 +78,29 @@ pub fn exercise_file(bytes: Vec<u8>) {
 pub fn read_everything(bytes: &[u8]) -> Result<(), String> {
     let reader = Reader::from_source(Box::new(bytes.to_vec()), Arc::from("fuzz"), read_opts())
         .map_err(|e| e.to_string())?;
-    let attrs = reader.metadata().schema.triangle_attributes();
+    let attrs = reader.metadata().triangle_attributes();
+    let parts = reader.metadata().parts.len();
     let _ = reader.proxies().len();
     for id in 0..reader.header().sections.block_count {
         let block = reader.read_block(id).map_err(|e| e.to_string())?;
         let items = match block.entry.kind {
             BlockKind::Treelet => {
                 let t = block.treelets().map_err(|e| e.to_string())?;
-                t.walk(|_, _, n| n.check())
-                    .map_err(|e| e.to_string())?
-                    .treelets
+                // A part word names a part of the table (PART_ID), as verify checks.
+                t.walk_lods(|_, pos, n, entry| match entry.part {
+                    Some(p) if p as usize >= parts => Err(oocfmt::Error::malformed(
+                        oocfmt::Code::PartId,
+                        format!("LOD node at {pos}: part {p} of {parts}"),
+                    )),
+                    _ => n.check(),
+                })
+                .map_err(|e| e.to_string())?
+                .treelets
             }
             BlockKind::Triangle => {
                 let t = block.triangles(attrs).map_err(|e| e.to_string())?;
                 t.check_contents().map_err(|e| e.to_string())?;
+                t.check_parts(parts).map_err(|e| e.to_string())?;
                 t.triangle_count() as u64
             }
             BlockKind::Proxy => block.proxies().map_err(|e| e.to_string())?.len() as u64,
@@ -107,10 +116,12 @@ pub fn read_everything(bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
-/// `block_decode`: byte 0 selects codec (bits 0–1), kind (bits 2–3), triangle attributes
-/// (bits 4–6) and whether the schema is known (bit 7); bytes 1–3 are the raw length (LE, capped
-/// at 1 MiB); the rest are the stored bytes. Decodes with `decode_into`, then surveys the block.
-/// A successful decode must re-encode and decode to the same bytes.
+/// `block_decode`: byte 0 selects codec (bits 0–1), kind (bits 2–3), the schema's triangle
+/// attributes (bits 4–6) and whether the schema is known (bit 7); bytes 1–3 are the raw length
+/// (LE, capped at 1 MiB); the rest are the stored bytes. Decodes with `decode_into`, then
+/// surveys the block under each LOD kind and, with a schema, each part-id width (with a part
+/// table of a size that width fits: [`PART_TABLES`]). A successful decode must re-encode and
+/// decode to the same bytes.
 pub fn block_decode(data: &[u8]) {
     let Some((&sel, rest)) = data.split_first() else {
         return;
@@ -132,7 +143,7 @@ pub fn block_decode(data: &[u8]) {
         2 => BlockKind::Proxy,
         _ => BlockKind::Treelet,
     };
-    let attrs = (sel & 0x80 != 0).then_some(u16::from((sel >> 4) & 7));
+    let schema_attrs = (sel & 0x80 != 0).then_some(u16::from((sel >> 4) & 7));
     let mut raw = vec![0u8; raw_len];
     if decode_into(codec, stored, &mut raw).is_err() {
         return;
@@ -172,7 +183,20 @@ pub fn block_decode(data: &[u8]) {
         item_count: item_count.max(1),
     };
     for kinds in LOD_KINDS {
-        let _ = survey_block(&entry, &raw, attrs, kinds);
+        match schema_attrs {
+            None => {
+                let _ = survey_block(&entry, &raw, None, kinds);
+            }
+            Some(a) => {
+                for parts in PART_TABLES {
+                    let schema = BlockSchema {
+                        triangle_attributes: a | part_id_width(parts) << ATTR_PART_WIDTH_SHIFT,
+                        parts,
+                    };
+                    let _ = survey_block(&entry, &raw, Some(schema), kinds);
+                }
+            }
+        }
     }
     match kind {
         BlockKind::Treelet => treelet_decode(&raw),
@@ -184,14 +208,24 @@ pub fn block_decode(data: &[u8]) {
 }
 
 /// The LOD kinds a treelet block can be read under: a block does not say which its file has.
-const LOD_KINDS: [LodKinds; 6] = [
+const LOD_KINDS: [LodKinds; 12] = [
     LodKinds::VOXEL,
     LodKinds::BOTH,
     LodKinds::RLOD,
     LodKinds::VOXEL.filtered(),
     LodKinds::BOTH.filtered(),
     LodKinds::RLOD.filtered(),
+    LodKinds::VOXEL.with_parts(true),
+    LodKinds::BOTH.with_parts(true),
+    LodKinds::RLOD.with_parts(true),
+    LodKinds::VOXEL.filtered().with_parts(true),
+    LodKinds::BOTH.filtered().with_parts(true),
+    LodKinds::RLOD.filtered().with_parts(true),
 ];
+
+/// Part-table lengths that give each part-id width (none, u8, u16, u32), small within their
+/// width so that `PART_ID` is reachable.
+const PART_TABLES: [usize; 4] = [0, 3, 300, 70_000];
 
 /// `treelet_decode`: parse a treelet block under every LOD kind, walk it, and decode every node,
 /// voxel and R-LOD record the walk reaches through the accessors as well.
@@ -256,6 +290,21 @@ fn treelet_decode_as(data: &[u8], kinds: LodKinds) {
             }
         }
     }
+    for &(_, _, node, entry) in &seen {
+        if matches!(node, Node::Lod { .. }) {
+            assert_eq!(
+                entry.part.is_some(),
+                kinds.parts,
+                "a LOD entry's part word and the kinds disagree"
+            );
+            let parts_len = if kinds.parts { PART_WORD_LEN } else { 0 };
+            let rest = entry.byte_len() - entry.voxel_len;
+            let rlod_len = rest - parts_len;
+            assert!(rlod_len == 0 || rlod_len == oocfmt::records::RLOD_LEN);
+        } else {
+            assert_eq!(entry.part, None, "a part word outside a LOD entry");
+        }
+    }
     if let Ok(sum) = walked {
         assert_eq!(sum.treelets, block.treelet_count() as u64);
         assert_eq!(
@@ -313,6 +362,20 @@ pub fn triangle_decode(data: &[u8]) {
         }
     }
     assert!(block.triangle(t).is_err(), "triangle past the end reads");
+    // Part ids: there exactly when the width says, the same through both accessors.
+    for (i, tri) in block.all_triangles().enumerate() {
+        let part = block.part(i);
+        assert!(
+            part.as_ref().is_ok_and(|&p| p == tri.part),
+            "triangle {i}: part {part:?}, the record says {:?}",
+            tri.part
+        );
+        assert_eq!(tri.part.is_some(), block.has_parts(), "triangle {i}");
+    }
+    assert!(block.part(t).is_err(), "part past the end reads");
+    if block.check_parts(usize::MAX).is_err() {
+        panic!("a part id not below usize::MAX");
+    }
     for i in 0..=w {
         if let Ok(v) = block.vertex(i) {
             if contents_ok {

@@ -5,7 +5,10 @@ use std::path::Path;
 
 use oocfmt::directory as dir;
 use oocfmt::header as hdr;
-use oocfmt::records::{LodKinds, Node, TreeletBlock, TriangleBlock, Voxel, RLOD_LEN};
+use oocfmt::records::triangle::{ATTR_PART_WIDTH, ATTR_PART_WIDTH_SHIFT};
+use oocfmt::records::{
+    LodKinds, Node, TreeletBlock, TriangleBlock, Voxel, PART_WORD_LEN, RLOD_LEN,
+};
 use oocfmt::trailer as trl;
 use oocfmt::{BlockKind, CodecId, ReadOptions, Reader};
 
@@ -140,7 +143,7 @@ impl Dump<'_> {
         match e.kind {
             BlockKind::Treelet => self.treelet_block(at, &raw, reader.lod_kinds()),
             BlockKind::Triangle => {
-                self.triangle_block(at, &raw, reader.metadata().schema.triangle_attributes())
+                self.triangle_block(at, &raw, reader.metadata().triangle_attributes())
             }
             BlockKind::Proxy => {
                 for i in 0..e.item_count as usize {
@@ -161,10 +164,11 @@ impl Dump<'_> {
         let t = b.treelet_count();
         self.field(at, 4, &format!("treelet count {t}"));
         self.field(at + 4, 4, &format!("node bytes {}", b.node_area().len()));
-        let area = if !kinds.rlod {
-            "voxel bytes"
-        } else {
-            "LOD area bytes (voxels and R-LODs)"
+        let area = match (kinds.rlod, kinds.parts) {
+            (false, false) => "voxel bytes",
+            (true, false) => "LOD area bytes (voxels and R-LODs)",
+            (false, true) => "LOD area bytes (voxels and part words)",
+            (true, true) => "LOD area bytes (voxels, R-LODs and part words)",
         };
         self.field(at + 8, 4, &format!("{area} {}", b.voxel_area().len()));
         self.field(at + 12, 4, "reserved");
@@ -209,6 +213,10 @@ impl Dump<'_> {
                     };
                     entries.push((off + entry.voxel_len, RLOD_LEN, label));
                 }
+                if let Some(p) = entry.part {
+                    let label = format!("part word of the LOD node at {pos}: part {p}");
+                    entries.push((off + entry.byte_len() - PART_WORD_LEN, PART_WORD_LEN, label));
+                }
             }
             let label = match *n {
                 Node::Basic { axis, split, left, right } => format!("treelet {tl} basic node: axis {axis}, split {split}, children +{left} +{right} (8-byte units)"),
@@ -239,7 +247,12 @@ impl Dump<'_> {
         self.field(at, 4, &format!("list count {l}"));
         self.field(at + 4, 4, &format!("triangle count {t}"));
         self.field(at + 8, 4, &format!("vertex count {w}"));
-        self.field(at + 12, 2, &format!("attributes {attrs:#x}"));
+        let width = (attrs & ATTR_PART_WIDTH) >> ATTR_PART_WIDTH_SHIFT;
+        let attr_label = match width {
+            0 => format!("attributes {attrs:#x}"),
+            c => format!("attributes {attrs:#x} (part-id width code {c})"),
+        };
+        self.field(at + 12, 2, &attr_label);
         self.field(at + 14, 2, &format!("primary count {}", b.primary_count()));
         let list_len = (2 * l + 3) & !3;
         self.field(
@@ -265,7 +278,30 @@ impl Dump<'_> {
         if tri_len > tri_rec * t {
             self.field(tri_at + tri_rec * t, tri_len - tri_rec * t, "padding");
         }
-        let vert_at = tri_at + tri_len;
+        // The part-id section (spec §8): one id per triangle, then padding.
+        let id_len = match width {
+            0 => 0,
+            1 => 1,
+            2 => 2,
+            _ => 4,
+        };
+        let parts_at = tri_at + tri_len;
+        let parts_len = (id_len * t + 3) & !3;
+        if id_len > 0 {
+            let ids: Vec<String> = (0..t)
+                .map(|i| match b.part(i) {
+                    Ok(Some(p)) => p.to_string(),
+                    _ => "?".into(),
+                })
+                .collect();
+            let label = format!(
+                "part-id section: {t} × u{} part ids {} (+ padding)",
+                8 * id_len,
+                ids.join(" ")
+            );
+            self.field(parts_at, parts_len, &label);
+        }
+        let vert_at = parts_at + parts_len;
         let vert_len = (raw.len() - (vert_at - at)).checked_div(w).unwrap_or(0);
         for i in 0..w {
             let label = b.vertex(i).map(|v| {

@@ -46,6 +46,9 @@ pub struct NodeDump {
     pub voxel: Option<Vec<SampleDump>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rlod: Option<RlodDump>,
+    /// The LOD entry's part word (spec §6.2), in a file with `PART_IDS` only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub part: Option<u32>,
 }
 
 /// An R-LOD record with its bounds decoded for the node's radius (spec §6.4).
@@ -160,10 +163,9 @@ pub fn dump(reader: &Reader, id: u32) -> Result<BlockDump, CliError> {
     let e = block.entry;
     let content = match e.kind {
         BlockKind::Treelet => Content::Treelets(treelets(&block)?),
-        BlockKind::Triangle => Content::Triangles(triangles(
-            &block,
-            reader.metadata().schema.triangle_attributes(),
-        )?),
+        BlockKind::Triangle => {
+            Content::Triangles(triangles(&block, reader.metadata().triangle_attributes())?)
+        }
         BlockKind::Proxy => Content::Proxies(
             block
                 .proxies()?
@@ -193,7 +195,7 @@ pub fn dump(reader: &Reader, id: u32) -> Result<BlockDump, CliError> {
 fn treelets(block: &oocfmt::Block) -> Result<Vec<TreeletDump>, CliError> {
     let view = block.treelets()?;
     let mut out: Vec<TreeletDump> = Vec::new();
-    view.walk(|t, pos, node| {
+    view.walk_lods(|t, pos, node, entry| {
         if out.last().is_none_or(|d| d.index != t) {
             out.push(TreeletDump {
                 index: t,
@@ -285,6 +287,7 @@ fn treelets(block: &oocfmt::Block) -> Result<Vec<TreeletDump>, CliError> {
                 node: json,
                 voxel,
                 rlod,
+                part: entry.part,
             });
         }
         Ok(())
@@ -360,6 +363,9 @@ pub fn render(d: &BlockDump) -> String {
                             serde_json::to_string(r).unwrap_or_default()
                         );
                     }
+                    if let Some(p) = n.part {
+                        let _ = writeln!(o, "          part {p}");
+                    }
                 }
             }
         }
@@ -373,11 +379,12 @@ pub fn render(d: &BlockDump) -> String {
             for (i, tri) in t.triangles.iter().enumerate() {
                 let _ = writeln!(
                     o,
-                    "  triangle {i}: vertices {:?}{}",
+                    "  triangle {i}: vertices {:?}{}{}",
                     tri.v,
                     tri.material
                         .map(|m| format!(" material {m}"))
-                        .unwrap_or_default()
+                        .unwrap_or_default(),
+                    tri.part.map(|p| format!(" part {p}")).unwrap_or_default()
                 );
             }
             for (i, v) in t.vertices.iter().enumerate() {

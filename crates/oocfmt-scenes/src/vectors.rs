@@ -14,10 +14,12 @@ use oocfmt_build::layout::{write_container, LayoutError, LayoutOptions};
 use oocfmt_meshio::mesh::Mesh;
 
 mod more;
+mod parts;
 pub use more::{
     filtered_mesh, grid_mesh, write_filtered, write_grid, write_rlod_only, GRID_BLOCK_SIZE,
     GRID_ORIGIN,
 };
+pub use parts::{parts_mesh, write_parts};
 
 /// The block size of every vector but `grid-8k`: the smallest, so that even tiny scenes
 /// exercise packing.
@@ -25,7 +27,7 @@ pub const VECTOR_BLOCK_SIZE: u64 = 4096;
 /// A fixed generator name: a version number here would change the vectors on every release.
 pub const VECTOR_GENERATOR: &str = "oocfmt-build spec vectors";
 /// The vector names, in the order [`write_vectors`] writes them.
-pub const VECTOR_NAMES: [&str; 8] = [
+pub const VECTOR_NAMES: [&str; 9] = [
     "quad",
     "lod-none",
     "lod-lz4",
@@ -34,6 +36,7 @@ pub const VECTOR_NAMES: [&str; 8] = [
     "lod-filtered",
     "rlod-only",
     "grid-8k",
+    "parts",
 ];
 
 #[derive(Debug, thiserror::Error)]
@@ -78,6 +81,9 @@ pub fn write_vectors(dir: &Path) -> Result<Vec<PathBuf>, VectorError> {
     out.push(path);
     let path = dir.join("grid-8k.oocf");
     write_grid(&path)?;
+    out.push(path);
+    let path = dir.join("parts.oocf");
+    write_parts(&path)?;
     out.push(path);
     Ok(out)
 }
@@ -381,6 +387,9 @@ mod tests {
                 check_grid(&r).map_err(|e| e.to_string())?;
                 continue;
             }
+            if name == "parts" {
+                check_parts(&r).map_err(|e| e.to_string())?;
+            }
             assert_eq!(r.header().block_size(), VECTOR_BLOCK_SIZE as u32, "{name}");
             let kinds: Vec<(BlockKind, CodecId)> =
                 r.entries().iter().map(|e| (e.kind, e.codec)).collect();
@@ -411,6 +420,10 @@ mod tests {
             );
             assert_eq!(m.materials.len(), 2);
             let (lod, minor) = match name {
+                "parts" => (
+                    oocfmt::records::LodKinds::BOTH.filtered().with_parts(true),
+                    3,
+                ),
                 "lod-rlod" => (oocfmt::records::LodKinds::BOTH, 1),
                 "lod-filtered" => (oocfmt::records::LodKinds::BOTH.filtered(), 2),
                 "rlod-only" => (oocfmt::records::LodKinds::RLOD, 1),
@@ -421,7 +434,7 @@ mod tests {
             let most = if lod.rlod { 12288 } else { 8192 };
             assert!(r.file_len() < most, "{name} is {} bytes", r.file_len());
             let want = match name {
-                "lod-lz4" | "lod-filtered" => CodecId::Lz4,
+                "lod-lz4" | "lod-filtered" | "parts" => CodecId::Lz4,
                 "lod-zstd" => CodecId::Zstd,
                 _ => CodecId::None,
             };
@@ -431,6 +444,56 @@ mod tests {
                 "{name}: {kinds:?}"
             );
         }
+        Ok(())
+    }
+
+    /// What `parts` is for: a table of four parts three deep with their counts and boxes, u8
+    /// ids on every triangle and a part word on every LOD entry, each naming a part with
+    /// triangles.
+    fn check_parts(r: &oocfmt::Reader) -> oocfmt::Result<()> {
+        use oocfmt::records::triangle::ATTR_PART_WIDTH_SHIFT;
+        use oocfmt::BlockKind;
+        let m = r.metadata();
+        let names: Vec<(&str, Option<u32>, u64)> = m
+            .parts
+            .iter()
+            .map(|p| (p.name.as_str(), p.parent, p.triangles))
+            .collect();
+        assert_eq!(
+            names,
+            vec![
+                ("assembly", None, 0),
+                ("floor", Some(0), 32),
+                ("cube", Some(0), 32),
+                ("lid", Some(2), 8)
+            ]
+        );
+        assert_eq!(m.parts[0].bounds_max, [0.0; 3]);
+        assert_eq!(m.parts[3].bounds_min[2], 1.0);
+        let attrs = m.triangle_attributes();
+        assert_eq!(attrs >> ATTR_PART_WIDTH_SHIFT, 1, "u8 ids");
+        let mut words = std::collections::BTreeSet::new();
+        for (id, e) in (0u32..).zip(r.entries()) {
+            let b = r.read_block(id)?;
+            match e.kind {
+                BlockKind::Triangle => {
+                    for t in b.triangles(attrs)?.all_triangles() {
+                        assert!(matches!(t.part, Some(1..=3)), "{t:?}");
+                    }
+                }
+                BlockKind::Treelet => {
+                    b.treelets()?.walk_lods(|_, _, n, entry| {
+                        if matches!(n, oocfmt::records::Node::Lod { .. }) {
+                            words.insert(entry.part);
+                        }
+                        Ok(())
+                    })?;
+                }
+                BlockKind::Proxy => {}
+            }
+        }
+        assert!(words.len() >= 2, "part words {words:?}");
+        assert!(words.iter().all(|w| matches!(w, Some(1..=3))), "{words:?}");
         Ok(())
     }
 

@@ -81,10 +81,12 @@ fn triangle_block() -> Vec<u8> {
             let _ = w.push_triangle(Triangle {
                 v: [v, v + 1, v + n],
                 material: None,
+                part: None,
             });
             let _ = w.push_triangle(Triangle {
                 v: [v + 1, v + n + 1, v + n],
                 material: None,
+                part: None,
             });
         }
     }

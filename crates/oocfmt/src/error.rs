@@ -61,6 +61,9 @@ pub enum Code {
     MetadataNonCanonical,
     /// The metadata is longer than the configured limit.
     MetadataLimit,
+    /// The part table breaks a rule of spec §9 (a parent not before its child, an unknown
+    /// source, a non-finite bound, too many parts), or disagrees with the `PART_IDS` bit.
+    PartTable,
     /// A size in the file exceeds a reader limit (spec §12).
     LimitExceeded,
     /// A block's stored bytes do not match the CRC in its directory entry.
@@ -93,6 +96,8 @@ pub enum Code {
     TriangleAttributes,
     /// A vertex position is NaN or infinite.
     VertexNotFinite,
+    /// A triangle's or a LOD entry's part id is not below the number of parts.
+    PartId,
     /// A proxy block's length is not 80 × `item_count`, or a proxy record is invalid.
     ProxyLayout,
     /// The root is missing, or is not a treelet of a level-0 treelet block.
@@ -115,6 +120,10 @@ pub enum Code {
     TreeMaterial,
     /// The counts or schema in the metadata differ from what the tree holds.
     TreeCounts,
+    /// A part's triangle count differs from the primaries that carry its id (deep).
+    PartCounts,
+    /// A part's bounds are not the exact box of its triangles' corners (deep).
+    PartBounds,
     /// The file holds no geometry (warning).
     TreeEmpty,
     /// A bad argument given to the writer or reader API (not a file problem).
@@ -164,6 +173,7 @@ impl Code {
         Code::MetadataDecode,
         Code::MetadataNonCanonical,
         Code::MetadataLimit,
+        Code::PartTable,
         Code::LimitExceeded,
         Code::BlockChecksum,
         Code::BlockDecompress,
@@ -180,6 +190,7 @@ impl Code {
         Code::TriangleIndex,
         Code::TriangleAttributes,
         Code::VertexNotFinite,
+        Code::PartId,
         Code::ProxyLayout,
         Code::TreeRoot,
         Code::TreeReference,
@@ -191,6 +202,8 @@ impl Code {
         Code::TreeLodRadius,
         Code::TreeMaterial,
         Code::TreeCounts,
+        Code::PartCounts,
+        Code::PartBounds,
         Code::TreeEmpty,
     ];
 
@@ -224,6 +237,7 @@ impl Code {
             Code::MetadataDecode => "METADATA_DECODE",
             Code::MetadataNonCanonical => "METADATA_NON_CANONICAL",
             Code::MetadataLimit => "METADATA_LIMIT",
+            Code::PartTable => "PART_TABLE",
             Code::LimitExceeded => "LIMIT_EXCEEDED",
             Code::BlockChecksum => "BLOCK_CHECKSUM",
             Code::BlockDecompress => "BLOCK_DECOMPRESS",
@@ -240,6 +254,7 @@ impl Code {
             Code::TriangleIndex => "TRIANGLE_INDEX",
             Code::TriangleAttributes => "TRIANGLE_ATTRIBUTES",
             Code::VertexNotFinite => "VERTEX_NOT_FINITE",
+            Code::PartId => "PART_ID",
             Code::ProxyLayout => "PROXY_LAYOUT",
             Code::TreeRoot => "TREE_ROOT",
             Code::TreeReference => "TREE_REFERENCE",
@@ -251,6 +266,8 @@ impl Code {
             Code::TreeLodRadius => "TREE_LOD_RADIUS",
             Code::TreeMaterial => "TREE_MATERIAL",
             Code::TreeCounts => "TREE_COUNTS",
+            Code::PartCounts => "PART_COUNTS",
+            Code::PartBounds => "PART_BOUNDS",
             Code::TreeEmpty => "TREE_EMPTY",
             Code::InvalidParameter => "INVALID_PARAMETER",
         }

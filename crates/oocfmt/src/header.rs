@@ -12,8 +12,13 @@ pub const VERSION_MAJOR: u16 = 1;
 /// The newest minor version this crate knows; it reads every minor of [`VERSION_MAJOR`]. It
 /// writes [`VERSION_MINOR_BASE`] for files that use nothing added since (unfiltered voxel-only
 /// files stay byte-identical to 1.0 ones), [`VERSION_MINOR_RLODS`] for unfiltered files with
-/// R-LODs, and this for pre-filtered files.
-pub const VERSION_MINOR: u16 = 2;
+/// R-LODs, [`VERSION_MINOR_FILTERED`] for pre-filtered files and this for files with a part
+/// table.
+pub const VERSION_MINOR: u16 = VERSION_MINOR_PARTS;
+/// The minor version that added the metadata's part table and per-triangle part ids.
+pub const VERSION_MINOR_PARTS: u16 = 3;
+/// The minor version that added pre-filtered LOD records (`LOD_FILTERED`).
+pub const VERSION_MINOR_FILTERED: u16 = 2;
 /// The minor version that added R-LODs.
 pub const VERSION_MINOR_RLODS: u16 = 1;
 /// The minor version of files that use no feature added after 1.0.
@@ -38,8 +43,12 @@ pub const INCOMPAT_LOD_NO_VOXELS: u64 = 1 << 1;
 /// Voxel samples may carry footprints and R-LOD records a shade and a coverage (spec §5.1);
 /// since 1.2.
 pub const INCOMPAT_LOD_FILTERED: u64 = 1 << 2;
+/// Triangle blocks carry a part id per triangle and every LOD entry ends with a part word
+/// (spec §6.2, §8); set exactly when the metadata's part table has two or more parts. Since 1.3.
+pub const INCOMPAT_PART_IDS: u64 = 1 << 3;
 /// Incompatible feature bits defined by this version.
-pub const KNOWN_INCOMPAT: u64 = INCOMPAT_LOD_RLODS | INCOMPAT_LOD_NO_VOXELS | INCOMPAT_LOD_FILTERED;
+pub const KNOWN_INCOMPAT: u64 =
+    INCOMPAT_LOD_RLODS | INCOMPAT_LOD_NO_VOXELS | INCOMPAT_LOD_FILTERED | INCOMPAT_PART_IDS;
 
 // Field offsets, each built from the one before so prose and code cannot drift apart.
 /// Byte offset in the header of [`MAGIC`].

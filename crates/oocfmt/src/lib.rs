@@ -15,7 +15,7 @@
 //! assert_eq!(reader.metadata().counts.triangles, 2);
 //! let id = reader.entries().iter().position(|e| e.kind == BlockKind::Triangle).unwrap_or(0);
 //! let block = reader.read_block(id as u32)?;
-//! let triangles = block.triangles(reader.metadata().schema.triangle_attributes())?;
+//! let triangles = block.triangles(reader.metadata().triangle_attributes())?;
 //! assert_eq!(triangles.primary_count(), 2);
 //! # Ok::<(), oocfmt::Error>(())
 //! ```

@@ -3,6 +3,12 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Code, Error, Result};
+use crate::header::{VERSION_MINOR, VERSION_MINOR_BASE, VERSION_MINOR_PARTS};
+use crate::records::triangle::{part_id_width, ATTR_PART_WIDTH_SHIFT};
+
+/// Most parts a part table may hold (spec §12): ids then fit 24 bits, and a table this long
+/// already needs far more metadata than the default limit allows.
+pub const MAX_PARTS: usize = 1 << 24;
 
 /// The file's metadata value (spec §9). Field order is the wire order: new fields may only be
 /// appended, in a new minor version (spec §11).
@@ -23,6 +29,74 @@ pub struct Metadata {
     pub build: Build,
     /// What made the file and from which inputs.
     pub provenance: Provenance,
+    /// The scene's parts (CAD assembly nodes), parents first; since 1.3, and only files of
+    /// minor 3 or later store the field. Empty when the input named no parts; with two or more,
+    /// triangles and LOD entries carry part ids (`PART_IDS`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub parts: Vec<Part>,
+}
+
+/// One part of the scene: a named node of the assembly forest (spec §9). Its counts and bounds
+/// cover its own triangles only, so a viewer can size and frame it without reading a block.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Part {
+    /// The name the input gave it (for people and glob selection; no rule reads it).
+    pub name: String,
+    /// Index of the parent part, below this part's own index; `None` for a top-level part.
+    pub parent: Option<u32>,
+    /// Index into [`Provenance::sources`] of the input file the part came from, when known.
+    pub source: Option<u32>,
+    /// Primary triangles whose part id is this part (not counting its descendants').
+    pub triangles: u64,
+    /// Low corner of those triangles' corners, in stored coordinates; zero without triangles.
+    pub bounds_min: [f32; 3],
+    /// High corner of those triangles' corners, in stored coordinates; zero without triangles.
+    pub bounds_max: [f32; 3],
+}
+
+/// Refuses a part table whose length, the varint `bytes` start with, is over [`MAX_PARTS`]
+/// (`PART_TABLE`, spec §12), before any part is decoded. A malformed varint is left to the
+/// decoder, which names it.
+fn check_part_count(bytes: &[u8]) -> Result<()> {
+    let mut n = 0u64;
+    for (i, &b) in bytes.iter().take(10).enumerate() {
+        n |= u64::from(b & 0x7f) << (7 * i);
+        if b & 0x80 == 0 {
+            if n > MAX_PARTS as u64 {
+                return Err(Error::malformed(
+                    Code::PartTable,
+                    format!("the part table holds {n} parts, over the limit of {MAX_PARTS}"),
+                ));
+            }
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// The fields of metadata up to 1.2, borrowed: what a writer encodes first, so a file without
+/// parts keeps the bytes of a 1.2 writer's value.
+#[derive(Serialize)]
+struct Until12Ref<'a> {
+    scene: &'a Scene,
+    root: &'a Option<TreeletRef>,
+    counts: &'a Counts,
+    schema: &'a Schema,
+    materials: &'a Vec<Material>,
+    build: &'a Build,
+    provenance: &'a Provenance,
+}
+
+/// The fields of metadata up to 1.2, owned: what a reader decodes first at every minor.
+#[derive(Deserialize)]
+struct Until12 {
+    scene: Scene,
+    root: Option<TreeletRef>,
+    counts: Counts,
+    schema: Schema,
+    materials: Vec<Material>,
+    build: Build,
+    provenance: Provenance,
 }
 
 /// The scene's extent. Every value is finite; with a root, `bounds_min <= bounds_max` on every
@@ -146,29 +220,95 @@ pub struct Provenance {
 
 impl Metadata {
     /// The canonical postcard encoding of the value: the bytes a writer stores and the only
-    /// ones [`Metadata::decode`] accepts.
+    /// ones [`Metadata::decode`] accepts. The part table is written only when it is non-empty,
+    /// which is when a writer makes the file 1.3 ([`Metadata::minor_version`]).
     pub fn encode(&self) -> Result<Vec<u8>> {
-        postcard::to_stdvec(self)
-            .map_err(|e| Error::parameter(format!("metadata cannot be encoded: {e}")))
+        self.encode_for(!self.parts.is_empty())
     }
 
-    /// Decodes metadata. Trailing bytes are fields of a newer minor version: allowed only when
-    /// `newer_minor` says the file is newer than this reader (spec §11).
+    /// The encoding with the 1.3 part-table field (`with_parts`, even when empty) or without
+    /// it (only for an empty table). Postcard lays a struct out as its fields in order, so the
+    /// 1.2 fields then the table are the encoding of the whole value.
+    fn encode_for(&self, with_parts: bool) -> Result<Vec<u8>> {
+        let fail =
+            |e: postcard::Error| Error::parameter(format!("metadata cannot be encoded: {e}"));
+        if !with_parts && !self.parts.is_empty() {
+            return Err(Error::parameter(format!(
+                "a part table of {} parts needs format 1.3",
+                self.parts.len()
+            )));
+        }
+        let mut out = postcard::to_stdvec(&Until12Ref {
+            scene: &self.scene,
+            root: &self.root,
+            counts: &self.counts,
+            schema: &self.schema,
+            materials: &self.materials,
+            build: &self.build,
+            provenance: &self.provenance,
+        })
+        .map_err(fail)?;
+        if with_parts {
+            out.extend(postcard::to_stdvec(&self.parts).map_err(fail)?);
+        }
+        Ok(out)
+    }
+
+    /// The lowest minor version whose metadata holds this value: 1.3 with a part table, else 0
+    /// (the LOD kinds may ask for more, spec §11).
+    pub fn minor_version(&self) -> u16 {
+        if self.parts.is_empty() {
+            VERSION_MINOR_BASE
+        } else {
+            VERSION_MINOR_PARTS
+        }
+    }
+
+    /// The attribute bits every triangle block of the file carries (spec §8): the schema's,
+    /// with the part-id width the part table asks for in bits 3–4.
+    pub fn triangle_attributes(&self) -> u16 {
+        self.schema.triangle_attributes()
+            | (part_id_width(self.parts.len()) << ATTR_PART_WIDTH_SHIFT)
+    }
+
+    /// Decodes the metadata of a file of minor version `minor`: the fields of 1.2, then the
+    /// part table where `minor` is 3 or more. Trailing bytes are fields of a newer minor
+    /// version: allowed only when the file is newer than this reader (spec §11).
     ///
-    /// The value's bytes MUST be its canonical encoding, the one [`Metadata::encode`] writes
+    /// The value's bytes MUST be its canonical encoding, the one a writer of that minor writes
     /// (spec §9): postcard also accepts over-long varints, and a value with two encodings
     /// would give one content two file identities.
-    pub fn decode(bytes: &[u8], newer_minor: bool) -> Result<Metadata> {
-        let (meta, rest) = postcard::take_from_bytes::<Metadata>(bytes)
-            .map_err(|e| Error::malformed(Code::MetadataDecode, format!("metadata: {e}")))?;
-        if !rest.is_empty() && !newer_minor {
+    pub fn decode(bytes: &[u8], minor: u16) -> Result<Metadata> {
+        let undecodable =
+            |e: postcard::Error| Error::malformed(Code::MetadataDecode, format!("metadata: {e}"));
+        let (base, rest) = postcard::take_from_bytes::<Until12>(bytes).map_err(undecodable)?;
+        let with_parts = minor >= VERSION_MINOR_PARTS;
+        let (parts, rest) = if with_parts {
+            check_part_count(rest)?;
+            postcard::take_from_bytes::<Vec<Part>>(rest).map_err(|e| {
+                Error::malformed(Code::MetadataDecode, format!("metadata part table: {e}"))
+            })?
+        } else {
+            (Vec::new(), rest)
+        };
+        if !rest.is_empty() && minor <= VERSION_MINOR {
             return Err(Error::malformed(
                 Code::MetadataDecode,
                 format!("{} bytes after the metadata value", rest.len()),
             ));
         }
+        let meta = Metadata {
+            scene: base.scene,
+            root: base.root,
+            counts: base.counts,
+            schema: base.schema,
+            materials: base.materials,
+            build: base.build,
+            provenance: base.provenance,
+            parts,
+        };
         let used = bytes.get(..bytes.len() - rest.len()).unwrap_or(bytes);
-        let canonical = meta.encode()?;
+        let canonical = meta.encode_for(with_parts)?;
         if canonical != used {
             let at = canonical
                 .iter()
@@ -223,6 +363,45 @@ impl Metadata {
                 "material `{}` has a non-finite colour {:?}",
                 m.name, m.diffuse
             ));
+        }
+        self.check_parts()
+    }
+
+    /// The part table's rules (spec §9, `PART_TABLE`): a forest listed parents first, sources
+    /// that exist, finite bounds, at most [`MAX_PARTS`] parts.
+    pub fn check_parts(&self) -> Result<()> {
+        let bad = |detail: String| Err(Error::malformed(Code::PartTable, detail));
+        if self.parts.len() > MAX_PARTS {
+            return bad(format!(
+                "{} parts, over the limit of {MAX_PARTS}",
+                self.parts.len()
+            ));
+        }
+        let sources = self.provenance.sources.len();
+        for (i, p) in self.parts.iter().enumerate() {
+            if let Some(parent) = p.parent.filter(|&q| q as usize >= i) {
+                return bad(format!(
+                    "part {i} `{}` has parent {parent}, not an earlier part",
+                    p.name
+                ));
+            }
+            if let Some(source) = p.source.filter(|&s| s as usize >= sources) {
+                return bad(format!(
+                    "part {i} `{}` names source {source} of {sources}",
+                    p.name
+                ));
+            }
+            if !p
+                .bounds_min
+                .iter()
+                .chain(&p.bounds_max)
+                .all(|c| c.is_finite())
+            {
+                return bad(format!(
+                    "part {i} `{}` has bounds {:?} .. {:?}, not finite",
+                    p.name, p.bounds_min, p.bounds_max
+                ));
+            }
         }
         Ok(())
     }

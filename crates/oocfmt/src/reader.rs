@@ -8,7 +8,7 @@ use crate::checksum::{crc32c, Crc32c};
 use crate::codec::decode_into;
 use crate::directory::{check_placement, BlockEntry, BlockKind, ENTRY_LEN};
 use crate::error::{Code, Error, ErrorKind, Result};
-use crate::header::{Header, SectionTable, HEADER_LEN, OFF_HEADER_CRC, VERSION_MINOR};
+use crate::header::{Header, SectionTable, HEADER_LEN, INCOMPAT_PART_IDS, OFF_HEADER_CRC};
 use crate::metadata::Metadata;
 use crate::mmap::MmapSource;
 use crate::records::{LodKinds, ProxyRecord, TreeletBlock, TriangleBlock};
@@ -81,7 +81,8 @@ impl Block {
     }
 
     /// Parses the block as a triangle block whose attribute bits must equal `attrs` (the
-    /// metadata schema's); fails if it is of another kind or malformed.
+    /// metadata's [`Metadata::triangle_attributes`]); fails if it is of another kind or
+    /// malformed.
     pub fn triangles(&self, attrs: u16) -> Result<TriangleBlock<'_>> {
         self.check_kind(BlockKind::Triangle)?;
         TriangleBlock::parse(&self.data, Some(attrs)).map_err(|e| e.in_block(self.id))
@@ -424,9 +425,24 @@ pub fn read_metadata(
         })
         .at(s.metadata_offset));
     }
-    let meta = Metadata::decode(&bytes, header.minor > VERSION_MINOR)
-        .map_err(|e| e.at(s.metadata_offset))?;
+    let meta = Metadata::decode(&bytes, header.minor).map_err(|e| e.at(s.metadata_offset))?;
+    check_part_ids(header, &meta).map_err(|e| e.at(s.metadata_offset))?;
     Ok((meta, bytes))
+}
+
+/// `PART_IDS` is set exactly when the part table has two or more parts (spec §3): the bit fixes
+/// the layout of every triangle block and LOD entry, the table the ids' range.
+pub fn check_part_ids(header: &Header, meta: &Metadata) -> Result<()> {
+    let bit = header.incompatible_features & INCOMPAT_PART_IDS != 0;
+    let parts = meta.parts.len();
+    if bit != (parts >= 2) {
+        let said = if bit { "sets" } else { "does not set" };
+        return Err(Error::malformed(
+            Code::PartTable,
+            format!("the header {said} PART_IDS but the part table has {parts} parts"),
+        ));
+    }
+    Ok(())
 }
 
 /// The root checksum over header, directory and metadata bytes.

@@ -8,7 +8,7 @@ use crate::directory::{BlockEntry, BlockKind};
 use crate::error::{bad, Code, Result};
 use crate::header::{
     COMPAT_LOD_VOXELS, COMPAT_PROXIES, INCOMPAT_LOD_FILTERED, INCOMPAT_LOD_NO_VOXELS,
-    INCOMPAT_LOD_RLODS,
+    INCOMPAT_LOD_RLODS, INCOMPAT_PART_IDS,
 };
 use crate::metadata::Metadata;
 use crate::records::triangle::ATTR_MATERIALS;
@@ -38,6 +38,9 @@ pub enum BlockFacts {
         primaries: u32,
         /// Largest material index of its triangles; `None` without triangle materials.
         max_material: Option<u16>,
+        /// Its primaries per part, by part id (ids below the table's length only); empty
+        /// when the file has no part table or the metadata is not known.
+        parts: Vec<PartFacts>,
     },
     /// A proxy block.
     Proxy {
@@ -46,24 +49,70 @@ pub enum BlockFacts {
     },
 }
 
+/// One part's primaries in one triangle block: what deep verify sums into the part table's
+/// counts and bounds (spec §9).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PartFacts {
+    /// The part id.
+    pub part: u32,
+    /// Primaries with that id.
+    pub triangles: u64,
+    /// Low corner of their corners, in stored coordinates.
+    pub bounds_min: [f32; 3],
+    /// High corner of their corners, in stored coordinates.
+    pub bounds_max: [f32; 3],
+}
+
+impl PartFacts {
+    /// Takes `other`'s triangles (of the same part) into these.
+    pub fn merge(&mut self, other: &PartFacts) {
+        self.triangles += other.triangles;
+        for a in 0..3 {
+            self.bounds_min[a] = self.bounds_min[a].min(other.bounds_min[a]);
+            self.bounds_max[a] = self.bounds_max[a].max(other.bounds_max[a]);
+        }
+    }
+}
+
+/// What a block's checks need from the metadata, when it is known: the attribute word of every
+/// triangle block and the number of parts that part ids must stay below.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BlockSchema {
+    /// [`Metadata::triangle_attributes`]: what every triangle block's attributes must equal.
+    pub triangle_attributes: u16,
+    /// The part table's length (`PART_ID`: every id below it).
+    pub parts: usize,
+}
+
+impl BlockSchema {
+    /// The schema `m` gives every block of its file.
+    pub fn of(m: &Metadata) -> BlockSchema {
+        BlockSchema {
+            triangle_attributes: m.triangle_attributes(),
+            parts: m.parts.len(),
+        }
+    }
+}
+
 /// Decodes the framing of `raw` (block `id` with directory entry `e`) and checks every record
-/// it can check alone. `attrs` is the schema's triangle attribute word, when known; `lod` the
-/// file's LOD kinds (the layout of a treelet block's LOD area).
+/// it can check alone. `schema` is what the metadata says, when known; `lod` the file's LOD
+/// kinds (the layout of a treelet block's LOD area).
 pub fn survey_block(
     e: &BlockEntry,
     raw: &[u8],
-    attrs: Option<u16>,
+    schema: Option<BlockSchema>,
     lod: LodKinds,
 ) -> Result<BlockFacts> {
     let facts = match e.kind {
         BlockKind::Treelet => {
             let block = TreeletBlock::parse_with(raw, lod)?;
             let mut refs = 0u64;
-            let nodes = block.walk(|_, _, n| {
+            let parts = schema.map(|s| s.parts);
+            let nodes = block.walk_lods(|_, pos, n, entry| {
                 if let Node::Leaf { count, .. } = n {
                     refs += u64::from(*count);
                 }
-                Ok(())
+                lod_part(pos, entry.part, parts)
             })?;
             BlockFacts::Treelet {
                 nodes,
@@ -71,7 +120,7 @@ pub fn survey_block(
             }
         }
         BlockKind::Triangle => {
-            let b = TriangleBlock::parse(raw, attrs)?;
+            let b = TriangleBlock::parse(raw, schema.map(|s| s.triangle_attributes))?;
             b.check_contents()?;
             let mut max_material = None;
             if b.attributes() & ATTR_MATERIALS != 0 {
@@ -79,12 +128,20 @@ pub fn survey_block(
                     max_material = max_material.max(b.triangle(i)?.material);
                 }
             }
+            let parts = match schema.filter(|s| s.parts > 0) {
+                Some(s) => {
+                    b.check_parts(s.parts)?;
+                    part_facts(&b)?
+                }
+                None => Vec::new(),
+            };
             BlockFacts::Triangle {
                 list: b.list_count() as u32,
                 triangles: b.triangle_count() as u32,
                 vertices: b.vertex_count() as u32,
                 primaries: b.primary_count() as u32,
                 max_material,
+                parts,
             }
         }
         BlockKind::Proxy => {
@@ -105,6 +162,48 @@ pub fn survey_block(
         );
     }
     Ok(facts)
+}
+
+/// Checks a LOD entry's part word, at node `pos`, against the part table's length `parts`
+/// when known (`PART_ID`, spec §6.2).
+fn lod_part(pos: usize, part: Option<u32>, parts: Option<usize>) -> Result<()> {
+    match (part, parts) {
+        (Some(p), Some(n)) if p as usize >= n => Err(crate::error::Error::malformed(
+            Code::PartId,
+            format!("LOD node at {pos}: its entry names part {p} of {n}"),
+        )
+        .at(pos as u64)),
+        _ => Ok(()),
+    }
+}
+
+/// The primaries of block `b` per part, sorted by id: a block without ids has all of them in
+/// part 0 (the one part of its table). Their corners are checked finite already.
+fn part_facts(b: &TriangleBlock<'_>) -> Result<Vec<PartFacts>> {
+    let mut by_part: BTreeMap<u32, PartFacts> = BTreeMap::new();
+    for i in 0..b.primary_count() {
+        let part = b.part(i)?.unwrap_or(0);
+        let corners = b.positions(i)?;
+        let f = by_part.entry(part).or_insert(PartFacts {
+            part,
+            triangles: 0,
+            bounds_min: corners[0],
+            bounds_max: corners[0],
+        });
+        f.merge(&PartFacts {
+            part,
+            triangles: 1,
+            bounds_min: [0, 1, 2]
+                .map(|a| corners.iter().map(|c| c[a]).fold(f32::INFINITY, f32::min)),
+            bounds_max: [0, 1, 2].map(|a| {
+                corners
+                    .iter()
+                    .map(|c| c[a])
+                    .fold(f32::NEG_INFINITY, f32::max)
+            }),
+        });
+    }
+    Ok(by_part.into_values().collect())
 }
 
 impl BlockFacts {
@@ -205,7 +304,7 @@ pub struct Summary {
     /// The header's compatible feature bits.
     pub compatible_features: u64,
     /// Names of the known feature bits set (`PROXIES`, `LOD_VOXELS`, `LOD_RLODS`,
-    /// `LOD_NO_VOXELS`).
+    /// `LOD_NO_VOXELS`, `LOD_FILTERED`, `PART_IDS`).
     pub feature_names: Vec<String>,
     /// What the LOD nodes carry: `voxel`, `rlod` or `voxel+rlod`.
     pub lod_kinds: String,
@@ -316,6 +415,9 @@ fn build_summary(reader: &Reader, levels: Vec<LevelRow>, leaf_refs: u64) -> Summ
     }
     if h.incompatible_features & INCOMPAT_LOD_FILTERED != 0 {
         feature_names.push("LOD_FILTERED".to_string());
+    }
+    if h.incompatible_features & INCOMPAT_PART_IDS != 0 {
+        feature_names.push("PART_IDS".to_string());
     }
     Summary {
         file: reader.name().to_string(),

@@ -12,7 +12,7 @@ use crate::directory::{BlockEntry, BlockKind, CodecId};
 use crate::error::{Error, Result};
 use crate::header::{
     Header, SectionTable, COMPAT_LOD_VOXELS, COMPAT_PROXIES, DEFAULT_BLOCK_SIZE_LOG2, HEADER_LEN,
-    MAX_BLOCK_SIZE_LOG2, MIN_BLOCK_SIZE_LOG2, OFF_HEADER_CRC,
+    INCOMPAT_PART_IDS, MAX_BLOCK_SIZE_LOG2, MIN_BLOCK_SIZE_LOG2, OFF_HEADER_CRC,
 };
 use crate::metadata::Metadata;
 use crate::records::LodKinds;
@@ -39,7 +39,10 @@ pub struct WriteOptions {
     /// The codec blocks are compressed with; a block it does not shrink is stored raw.
     pub codec: Codec,
     /// What the LOD nodes carry: the header's LOD feature bits and the minor version
-    /// ([`LodKinds::minor_version`]). Pre-filtered voxels by default.
+    /// ([`LodKinds::minor_version`]). Pre-filtered voxels by default. The `PART_IDS` bit and
+    /// minor 3 also follow from the metadata's part table at [`Writer::finish`] (the blocks
+    /// must then carry part ids and part words), which refuses `parts` set here without two or
+    /// more parts.
     pub lod: LodKinds,
 }
 
@@ -342,6 +345,18 @@ impl<F: OutputFile> Writer<F> {
         if metadata.counts.lod_nodes > 0 {
             self.header.compatible_features |= COMPAT_LOD_VOXELS;
         }
+        // The part table decides the part ids' bit and the minor (spec §3, §9).
+        let part_ids = metadata.parts.len() >= 2;
+        if self.header.incompatible_features & INCOMPAT_PART_IDS != 0 && !part_ids {
+            return Err(Error::parameter(format!(
+                "the LOD entries were announced with part words, but the part table has {} parts (part ids need two or more)",
+                metadata.parts.len()
+            )));
+        }
+        if part_ids {
+            self.header.incompatible_features |= INCOMPAT_PART_IDS;
+        }
+        self.header.minor = self.header.minor.max(metadata.minor_version());
         let header = self.header.encode();
         let mut root = Crc32c::new();
         root.update(&header[..OFF_HEADER_CRC]);

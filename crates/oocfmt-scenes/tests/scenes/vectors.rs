@@ -132,7 +132,7 @@ fn survey_lods(path: &Path) -> Result<LodSurvey, String> {
 
 /// Spec §14: `lod-filtered` holds voxels of all four lengths (4, 8, 24 and 36 bytes),
 /// footprints with coverage below 1, and R-LOD records with coverage and shade; the other
-/// vectors are unfiltered 1.0 and 1.1 files with neither.
+/// vectors but `parts` (1.3) are unfiltered 1.0 and 1.1 files with neither.
 #[test]
 fn the_filtered_vector_holds_what_the_spec_lists() -> Result<(), String> {
     use oocfmt::records::LodKinds;
@@ -150,6 +150,16 @@ fn the_filtered_vector_holds_what_the_spec_lists() -> Result<(), String> {
             .feature_names;
         let named = names.iter().any(|n| n == "LOD_FILTERED");
         assert_eq!(named, kinds.filtered, "{name}: {names:?}");
+        // `parts` (1.3) is pre-filtered too, with a part word closing every LOD entry.
+        let parts = names.iter().any(|n| n == "PART_IDS");
+        assert_eq!((parts, kinds.parts), (name == "parts", name == "parts"));
+        if name == "parts" {
+            assert_eq!(
+                (kinds, minor),
+                (LodKinds::BOTH.filtered().with_parts(true), 3)
+            );
+            continue;
+        }
         if name != "lod-filtered" {
             assert!(
                 !kinds.filtered && minor <= 1,

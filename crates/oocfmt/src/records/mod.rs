@@ -15,5 +15,5 @@ pub use node::{
 pub use proxy::{ProxyRecord, PROXY_DIRECTIONS, PROXY_LEN};
 pub use rlod::{LodKinds, Rlod, RLOD_LEN};
 pub use sample::{Footprint, Sample, Voxel};
-pub use treelet::{LodEntry, TreeletBlock, TreeletBlockWriter, TreeletSummary};
-pub use triangle::{Triangle, TriangleBlock, TriangleBlockWriter, Vertex};
+pub use treelet::{LodEntry, TreeletBlock, TreeletBlockWriter, TreeletSummary, PART_WORD_LEN};
+pub use triangle::{part_id_width, Triangle, TriangleBlock, TriangleBlockWriter, Vertex};

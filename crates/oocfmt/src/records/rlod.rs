@@ -9,8 +9,8 @@
 use crate::bytes::{f32_at, u32_at, PutLe};
 use crate::error::{bad, Code, Result};
 use crate::header::{
-    Header, INCOMPAT_LOD_FILTERED, INCOMPAT_LOD_NO_VOXELS, INCOMPAT_LOD_RLODS, VERSION_MINOR,
-    VERSION_MINOR_BASE, VERSION_MINOR_RLODS,
+    Header, INCOMPAT_LOD_FILTERED, INCOMPAT_LOD_NO_VOXELS, INCOMPAT_LOD_RLODS, INCOMPAT_PART_IDS,
+    VERSION_MINOR_BASE, VERSION_MINOR_FILTERED, VERSION_MINOR_PARTS, VERSION_MINOR_RLODS,
 };
 
 /// Bytes of one R-LOD record in a LOD area.
@@ -31,6 +31,9 @@ pub struct LodKinds {
     /// The records are pre-filtered (`LOD_FILTERED`, spec §5.1): voxels may carry footprints,
     /// R-LOD records a shade and a coverage.
     pub filtered: bool,
+    /// Every LOD entry ends with a part word (`PART_IDS`, spec §6.2): the part picking at that
+    /// level answers.
+    pub parts: bool,
 }
 
 impl Default for LodKinds {
@@ -46,18 +49,21 @@ impl LodKinds {
         voxel: true,
         rlod: false,
         filtered: false,
+        parts: false,
     };
     /// R-LODs only (`LOD_RLODS` and `LOD_NO_VOXELS`).
     pub const RLOD: LodKinds = LodKinds {
         voxel: false,
         rlod: true,
         filtered: false,
+        parts: false,
     };
     /// A voxel then an R-LOD record per LOD node (`LOD_RLODS` alone).
     pub const BOTH: LodKinds = LodKinds {
         voxel: true,
         rlod: true,
         filtered: false,
+        parts: false,
     };
 
     /// The same kinds, pre-filtered (spec §5.1): what a writer of 1.2 makes by default.
@@ -68,6 +74,12 @@ impl LodKinds {
         }
     }
 
+    /// The same kinds with a part word after every LOD entry (spec §6.2): a file whose part
+    /// table has two or more parts.
+    pub const fn with_parts(self, parts: bool) -> LodKinds {
+        LodKinds { parts, ..self }
+    }
+
     /// The kinds the header's incompatible feature bits announce. `LOD_NO_VOXELS` without
     /// `LOD_RLODS` would leave LOD nodes with nothing; the header decoder refuses it, and here it
     /// reads as voxels so a caller never sees an empty set.
@@ -75,10 +87,12 @@ impl LodKinds {
         let rlod = h.incompatible_features & INCOMPAT_LOD_RLODS != 0;
         let voxel = !rlod || h.incompatible_features & INCOMPAT_LOD_NO_VOXELS == 0;
         let filtered = h.incompatible_features & INCOMPAT_LOD_FILTERED != 0;
+        let parts = h.incompatible_features & INCOMPAT_PART_IDS != 0;
         LodKinds {
             voxel,
             rlod,
             filtered,
+            parts,
         }
     }
 
@@ -89,17 +103,22 @@ impl LodKinds {
             (true, true) => INCOMPAT_LOD_RLODS,
             (false, true) => INCOMPAT_LOD_RLODS | INCOMPAT_LOD_NO_VOXELS,
         };
-        if self.filtered {
-            kinds | INCOMPAT_LOD_FILTERED
+        let filtered = if self.filtered {
+            INCOMPAT_LOD_FILTERED
         } else {
-            kinds
-        }
+            0
+        };
+        let parts = if self.parts { INCOMPAT_PART_IDS } else { 0 };
+        kinds | filtered | parts
     }
 
-    /// The lowest minor version that describes a file of these kinds (spec §11).
+    /// The lowest minor version that describes a file of these kinds (spec §11); a part table
+    /// of one part needs 1.3 too, which the writer adds from the metadata.
     pub fn minor_version(self) -> u16 {
-        if self.filtered {
-            VERSION_MINOR
+        if self.parts {
+            VERSION_MINOR_PARTS
+        } else if self.filtered {
+            VERSION_MINOR_FILTERED
         } else if self.rlod {
             VERSION_MINOR_RLODS
         } else {

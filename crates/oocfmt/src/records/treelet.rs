@@ -1,5 +1,6 @@
 //! Treelet blocks (spec §6.2): a table of treelet starts, a node area and a LOD area (voxels
-//! and, in files with R-LODs, R-LOD records).
+//! and, in files with R-LODs, R-LOD records; in files with `PART_IDS`, a part word closing each
+//! entry).
 
 use std::ops::Range;
 
@@ -31,7 +32,22 @@ pub struct LodEntry {
     /// Bytes the voxel takes in the LOD area as stored (0 without one): the entry's length
     /// follows from it, not from the decoded voxel (spec §5.1).
     pub voxel_len: usize,
+    /// The part that covers most of the node's cell as seen from outside (spec §6.2), what
+    /// picking at this level answers; `None` for a non-LOD node or a file without `PART_IDS`.
+    pub part: Option<u32>,
 }
+
+impl LodEntry {
+    /// Bytes the entry takes in the LOD area: its voxel, R-LOD record and part word.
+    pub fn byte_len(&self) -> usize {
+        self.voxel_len
+            + self.rlod.map_or(0, |_| super::rlod::RLOD_LEN)
+            + self.part.map_or(0, |_| PART_WORD_LEN)
+    }
+}
+
+/// Bytes of the part word that ends each LOD entry of a file with `PART_IDS`.
+pub const PART_WORD_LEN: usize = 4;
 
 /// What one pass over a treelet block found.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -287,6 +303,18 @@ impl<'a> TreeletBlock<'a> {
             entry.rlod = Some(Rlod::decode(self.voxels, at, filtered)?);
             sum.rlods += 1;
         }
+        if self.kinds.parts {
+            let at = voxel_offset as usize + entry.byte_len();
+            entry.part = Some(u32_at(self.voxels, at, Code::LodArea).map_err(|_| {
+                Error::malformed(
+                    Code::LodArea,
+                    format!(
+                        "the part word of the LOD entry at {voxel_offset} would be at {at}, past the {}-byte LOD area",
+                        self.voxels.len()
+                    ),
+                )
+            })?);
+        }
         Ok(entry)
     }
 }
@@ -406,6 +434,12 @@ impl TreeletBlockWriter {
         let off = self.voxels.len() as u32;
         rlod.encode_into(&mut self.voxels, filtered);
         off
+    }
+
+    /// Appends the part word that ends a LOD entry in a file with `PART_IDS` (spec §6.2): call
+    /// it right after the entry's voxel and R-LOD record.
+    pub fn push_lod_part(&mut self, part: u32) {
+        self.voxels.put_u32(part);
     }
 
     /// Treelets begun so far.
@@ -595,5 +629,64 @@ mod tests {
             e.err().map(|e| e.code()),
             Some(Code::NodeChild | Code::NodeOverlap)
         ));
+    }
+
+    #[test]
+    fn a_lod_entry_ends_with_its_part_word() -> Result<()> {
+        let kinds = LodKinds::BOTH.filtered().with_parts(true);
+        let mut w = TreeletBlockWriter::new();
+        w.begin_treelet();
+        let vox = w.push_voxel(
+            &Voxel::single(Sample::pack([0.0, 0.0, 1.0], [1.0; 3])),
+            true,
+        );
+        let rlod = crate::records::Rlod {
+            normal: [0.0, 0.0, 1.0],
+            offset: 0.0,
+            colour: [1, 2, 3],
+            deviation_code: 0,
+            expansion_code: 0,
+            coverage: 255,
+            shade: 255,
+        };
+        w.push_rlod(&rlod, true);
+        w.push_lod_part(77);
+        w.push_node(&Node::Lod {
+            axis: 0,
+            split: 0.0,
+            radius: 1.0,
+            left_present: true,
+            right_present: false,
+            child_treelet: 0,
+            child_block: 1,
+            voxel_offset: vox,
+            proxy: 0,
+        });
+        let raw = w.finish();
+        let b = TreeletBlock::parse_with(&raw, kinds)?;
+        let mut entries = Vec::new();
+        b.walk_lods(|_, _, _, e| {
+            entries.push(*e);
+            Ok(())
+        })?;
+        assert_eq!(entries.len(), 1);
+        assert_eq!(entries[0].part, Some(77));
+        assert_eq!(entries[0].byte_len(), 4 + 24 + PART_WORD_LEN);
+        assert_eq!(entries[0].byte_len(), b.voxel_area().len());
+        assert_eq!(b.rlod(vox)?, rlod);
+        // Read without part words, the entry is shorter and the word unnamed.
+        let b = TreeletBlock::parse_with(&raw, kinds.with_parts(false))?;
+        b.walk_lods(|_, _, _, e| {
+            assert_eq!((e.part, e.byte_len()), (None, 28));
+            Ok(())
+        })?;
+        // An entry whose part word would pass the area's end is refused.
+        let mut short = raw.clone();
+        short.truncate(raw.len() - 4);
+        let lod_bytes = u32::from_le_bytes([short[8], short[9], short[10], short[11]]) - 4;
+        short[8..12].copy_from_slice(&lod_bytes.to_le_bytes());
+        let e = TreeletBlock::parse_with(&short, kinds).and_then(|b| b.walk(|_, _, _| Ok(())));
+        assert_eq!(e.err().map(|e| e.code()), Some(Code::LodArea));
+        Ok(())
     }
 }

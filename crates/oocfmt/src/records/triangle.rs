@@ -1,5 +1,6 @@
 //! Triangle blocks (spec §8): a list section of 16-bit triangle indices, a triangle section of
-//! 16-bit vertex indices, and a vertex section of de-duplicated vertices.
+//! 16-bit vertex indices, in files with `PART_IDS` a part-id section, and a vertex section of
+//! de-duplicated vertices.
 
 use crate::bytes::{u16_at, u32_at, PutLe};
 use crate::error::{bad, Code, Error, Result};
@@ -10,10 +11,14 @@ pub const ATTR_NORMALS: u16 = 1 << 0;
 pub const ATTR_COLOURS: u16 = 1 << 1;
 /// Attribute bit: triangles carry a material index.
 pub const ATTR_MATERIALS: u16 = 1 << 2;
+/// Where the part-id width code sits in the attribute bits (bits 3–4, spec §8).
+pub const ATTR_PART_WIDTH_SHIFT: u16 = 3;
+/// The attribute bits of the part-id width code: 0 none, 1 u8, 2 u16, 3 u32 ids.
+pub const ATTR_PART_WIDTH: u16 = 0b11 << ATTR_PART_WIDTH_SHIFT;
 /// What a triangle with neither vertex colours nor a material shows, linear RGB (spec §8): the
 /// renderer's colour for it and the writer's in the LOD records that stand for it.
 pub const DEFAULT_ALBEDO: [f32; 3] = [0.78, 0.76, 0.72];
-const KNOWN_ATTRS: u16 = ATTR_NORMALS | ATTR_COLOURS | ATTR_MATERIALS;
+const KNOWN_ATTRS: u16 = ATTR_NORMALS | ATTR_COLOURS | ATTR_MATERIALS | ATTR_PART_WIDTH;
 const HEAD_LEN: usize = 16;
 /// Largest list, triangle and vertex count of one block (16-bit indices).
 pub const MAX_ITEMS: usize = 0xffff;
@@ -30,6 +35,40 @@ fn triangle_len(attrs: u16) -> usize {
     }
 }
 
+/// The part-id width code (spec §8) for a part table of `parts` parts: 0 (no ids) for at most
+/// one part, else the narrowest of u8, u16 and u32 that holds every id.
+pub fn part_id_width(parts: usize) -> u16 {
+    match parts {
+        0..=1 => 0,
+        2..=0x100 => 1,
+        0x101..=0x1_0000 => 2,
+        _ => 3,
+    }
+}
+
+/// Bytes of one part id under `attrs`' width code (0 without ids).
+fn part_len(attrs: u16) -> usize {
+    match (attrs & ATTR_PART_WIDTH) >> ATTR_PART_WIDTH_SHIFT {
+        0 => 0,
+        1 => 1,
+        2 => 2,
+        _ => 4,
+    }
+}
+
+/// Part id `i` of a part-id section of `len`-byte ids; `None` without the section or past it.
+#[inline]
+fn part_at(section: &[u8], i: usize, len: usize) -> Option<u32> {
+    let at = i.checked_mul(len)?;
+    let b = section.get(at..at.checked_add(len)?)?;
+    match *b {
+        [x] => Some(u32::from(x)),
+        [x0, x1] => Some(u32::from(u16::from_le_bytes([x0, x1]))),
+        [x0, x1, x2, x3] => Some(u32::from_le_bytes([x0, x1, x2, x3])),
+        _ => None,
+    }
+}
+
 fn vertex_len(attrs: u16) -> usize {
     12 + if attrs & ATTR_NORMALS != 0 { 4 } else { 0 }
         + if attrs & ATTR_COLOURS != 0 { 4 } else { 0 }
@@ -42,6 +81,11 @@ pub struct Triangle {
     pub v: [u16; 3],
     /// Index into the metadata's materials, where the block has [`ATTR_MATERIALS`].
     pub material: Option<u16>,
+    /// Index into the metadata's parts, where the block has a part-id section (a width code in
+    /// [`ATTR_PART_WIDTH`]); a copy carries its primary's. Left out of JSON when absent, so
+    /// dumps of files without parts read as before.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub part: Option<u32>,
 }
 
 /// One vertex record of a triangle block, shared by the block's triangles.
@@ -108,12 +152,13 @@ fn le<const N: usize>(record: &[u8], at: usize) -> [u8; N] {
         .unwrap_or([0; N])
 }
 
-/// A triangle from its `triangle_len(attrs)`-byte record.
+/// A triangle from its `triangle_len(attrs)`-byte record and its part id.
 #[inline]
-fn triangle_from(r: &[u8], attrs: u16) -> Triangle {
+fn triangle_from(r: &[u8], attrs: u16, part: Option<u32>) -> Triangle {
     Triangle {
         v: [0, 2, 4].map(|at| u16::from_le_bytes(le(r, at))),
         material: (attrs & ATTR_MATERIALS != 0).then(|| u16::from_le_bytes(le(r, 6))),
+        part,
     }
 }
 
@@ -134,6 +179,7 @@ fn vertex_from(r: &[u8], attrs: u16) -> Vertex {
 pub struct TriangleBlock<'a> {
     list: &'a [u8],
     triangles: &'a [u8],
+    parts: &'a [u8],
     vertices: &'a [u8],
     attrs: u16,
     primary: u16,
@@ -170,15 +216,19 @@ impl<'a> TriangleBlock<'a> {
         }
         let list_len = align4(2 * l);
         let tri_len = align4(t * triangle_len(a));
+        let part_bytes = t * part_len(a);
+        let part_len = align4(part_bytes);
         let vert_len = w * vertex_len(a);
-        if HEAD_LEN + list_len + tri_len + vert_len != raw.len() {
-            return bad(c, format!("sections of {list_len}, {tri_len} and {vert_len} bytes do not fill a {}-byte block", raw.len()));
+        if HEAD_LEN + list_len + tri_len + part_len + vert_len != raw.len() {
+            return bad(c, format!("sections of {list_len}, {tri_len}, {part_len} and {vert_len} bytes do not fill a {}-byte block", raw.len()));
         }
         let tri_at = HEAD_LEN + list_len;
-        let vert_at = tri_at + tri_len;
+        let part_at = tri_at + tri_len;
+        let vert_at = part_at + part_len;
         let pad_ok = raw[HEAD_LEN + 2 * l..tri_at]
             .iter()
-            .chain(&raw[tri_at + t * triangle_len(a)..vert_at])
+            .chain(&raw[tri_at + t * triangle_len(a)..part_at])
+            .chain(&raw[part_at + part_bytes..vert_at])
             .all(|&b| b == 0);
         if !pad_ok {
             return bad(c, "padding bytes are not zero");
@@ -186,6 +236,7 @@ impl<'a> TriangleBlock<'a> {
         Ok(TriangleBlock {
             list: &raw[HEAD_LEN..HEAD_LEN + 2 * l],
             triangles: &raw[tri_at..tri_at + t * triangle_len(a)],
+            parts: &raw[part_at..part_at + part_bytes],
             vertices: &raw[vert_at..],
             attrs: a,
             primary,
@@ -213,9 +264,15 @@ impl<'a> TriangleBlock<'a> {
         usize::from(self.primary)
     }
 
-    /// The block's attribute bits (`ATTR_*`), equal to the metadata schema's.
+    /// The block's attribute bits (`ATTR_*` and the part-id width code), equal to the
+    /// metadata's [`crate::Metadata::triangle_attributes`].
     pub fn attributes(&self) -> u16 {
         self.attrs
+    }
+
+    /// Whether the block has a part-id section (the file has `PART_IDS`).
+    pub fn has_parts(&self) -> bool {
+        part_len(self.attrs) != 0
     }
 
     /// List entry `i`: a triangle index.
@@ -223,10 +280,45 @@ impl<'a> TriangleBlock<'a> {
         u16_at(self.list, 2 * i, Code::TreeReference)
     }
 
-    /// Triangle record `i`; an error if `i` is past the triangle section.
+    /// Triangle record `i`, with its part id; an error if `i` is past the triangle section.
     pub fn triangle(&self, i: usize) -> Result<Triangle> {
         let record = record(self.triangles, i, triangle_len(self.attrs), "triangle")?;
-        Ok(triangle_from(record, self.attrs))
+        Ok(triangle_from(
+            record,
+            self.attrs,
+            part_at(self.parts, i, part_len(self.attrs)),
+        ))
+    }
+
+    /// The part id of triangle `i`: `None` in a block without a part-id section; an error if
+    /// `i` is past the triangle section.
+    pub fn part(&self, i: usize) -> Result<Option<u32>> {
+        let t = self.triangle_count();
+        if i >= t {
+            return bad(
+                Code::TriangleIndex,
+                format!("triangle {i} is past the {t} of the block"),
+            );
+        }
+        Ok(part_at(self.parts, i, part_len(self.attrs)))
+    }
+
+    /// Checks that every part id is below `parts`, the length of the metadata's part table
+    /// (`PART_ID`); nothing to check in a block without ids.
+    pub fn check_parts(&self, parts: usize) -> Result<()> {
+        let len = part_len(self.attrs);
+        if len == 0 {
+            return Ok(());
+        }
+        for i in 0..self.triangle_count() {
+            if let Some(p) = part_at(self.parts, i, len).filter(|&p| p as usize >= parts) {
+                return bad(
+                    Code::PartId,
+                    format!("triangle {i} names part {p} of {parts}"),
+                );
+            }
+        }
+        Ok(())
     }
 
     /// Vertex record `i`; an error if `i` is past the vertex section.
@@ -245,10 +337,12 @@ impl<'a> TriangleBlock<'a> {
     /// Every triangle, in order: the bulk form of [`Self::triangle`]. The sections' lengths
     /// were checked by [`Self::parse`], so each record is whole.
     pub fn all_triangles(&self) -> impl ExactSizeIterator<Item = Triangle> + 'a {
-        let attrs = self.attrs;
+        let (attrs, parts) = (self.attrs, self.parts);
+        let len = part_len(attrs);
         self.triangles
             .chunks_exact(triangle_len(attrs))
-            .map(move |r| triangle_from(r, attrs))
+            .enumerate()
+            .map(move |(i, r)| triangle_from(r, attrs, part_at(parts, i, len)))
     }
 
     /// Every vertex, in order: the bulk form of [`Self::vertex`].
@@ -344,8 +438,23 @@ impl TriangleBlockWriter {
     }
 
     /// Appends a triangle; returns its index, or an error once the block holds [`MAX_ITEMS`].
+    /// With a part-id width in the attributes, `t.part` must be given and fit that width;
+    /// without one it is not stored (a one-part scene stores no ids).
     pub fn push_triangle(&mut self, t: Triangle) -> Result<u16> {
         Self::index(self.triangles.len(), "triangles")?;
+        let len = part_len(self.attrs);
+        if len != 0 {
+            let fits = t
+                .part
+                .is_some_and(|p| len == 4 || u64::from(p) < 1u64 << (8 * len));
+            if !fits {
+                return Err(Error::parameter(format!(
+                    "triangle {} has part {:?}, not a {len}-byte part id",
+                    self.triangles.len(),
+                    t.part
+                )));
+            }
+        }
         self.triangles.push(t);
         Ok((self.triangles.len() - 1) as u16)
     }
@@ -377,6 +486,7 @@ impl TriangleBlockWriter {
         HEAD_LEN
             + align4(2 * list)
             + align4(triangles * triangle_len(attrs))
+            + align4(triangles * part_len(attrs))
             + vertices * vertex_len(attrs)
     }
 
@@ -395,7 +505,8 @@ impl TriangleBlockWriter {
         self.triangles.len()
     }
 
-    /// The block's raw bytes: header, list, triangle and vertex sections, zero-padded.
+    /// The block's raw bytes: header, list, triangle, part-id and vertex sections,
+    /// zero-padded.
     pub fn finish(self) -> Vec<u8> {
         let mut v = Vec::with_capacity(self.raw_len());
         v.put_u32(self.list.len() as u32);
@@ -414,6 +525,12 @@ impl TriangleBlockWriter {
             if self.attrs & ATTR_MATERIALS != 0 {
                 v.put_u16(t.material.unwrap_or(0));
             }
+        }
+        v.resize(align4(v.len()), 0);
+        let len = part_len(self.attrs);
+        for t in self.triangles.iter().filter(|_| len != 0) {
+            let p = t.part.unwrap_or(0).to_le_bytes();
+            v.extend_from_slice(p.get(..len).unwrap_or(&p));
         }
         v.resize(align4(v.len()), 0);
         for x in &self.vertices {
@@ -452,7 +569,8 @@ mod tests {
         assert!(w
             .push_triangle(Triangle {
                 v: [0, 1, 2],
-                material: Some(7)
+                material: Some(7),
+                part: None,
             })
             .is_ok());
         assert!(w.push_list(0).is_ok());
@@ -466,7 +584,8 @@ mod tests {
             b.triangle(0).ok(),
             Some(Triangle {
                 v: [0, 1, 2],
-                material: Some(7)
+                material: Some(7),
+                part: None,
             })
         );
         let n = b.vertex(0).ok().and_then(|v| v.normal).map(oct_decode);
@@ -500,6 +619,7 @@ mod tests {
         let _ = w.push_triangle(Triangle {
             v: [0, 0, 5],
             material: None,
+            part: None,
         });
         let raw = w.finish();
         assert_eq!(
@@ -515,5 +635,89 @@ mod tests {
                 .map(|e| e.code()),
             Some(Code::TriangleIndex)
         );
+    }
+
+    /// A block of `ids` with the width code `code`: round trips through the writer and both
+    /// readers, padded to 4 bytes with zeros.
+    fn block_with_parts(code: u16, ids: &[u32]) -> Result<Vec<u8>> {
+        let attrs = code << ATTR_PART_WIDTH_SHIFT;
+        let mut w = TriangleBlockWriter::new(attrs);
+        w.push_vertex(Vertex {
+            position: [0.0; 3],
+            normal: None,
+            colour: None,
+        })?;
+        for &p in ids {
+            w.push_triangle(Triangle {
+                v: [0, 0, 0],
+                material: None,
+                part: Some(p),
+            })?;
+        }
+        let len = w.raw_len();
+        let raw = w.finish();
+        assert_eq!(raw.len(), len);
+        Ok(raw)
+    }
+
+    #[test]
+    fn part_ids_round_trip_in_every_width() -> Result<()> {
+        for (code, ids) in [
+            (1u16, vec![0u32, 255, 7]),
+            (2, vec![65535, 1, 300]),
+            (3, vec![u32::MAX, 0, 1 << 24, 5, 6]),
+        ] {
+            let raw = block_with_parts(code, &ids)?;
+            let b = TriangleBlock::parse(&raw, Some(code << ATTR_PART_WIDTH_SHIFT))?;
+            assert!(b.has_parts());
+            let got: Vec<Option<u32>> = b.all_triangles().map(|t| t.part).collect();
+            assert_eq!(got, ids.iter().map(|&p| Some(p)).collect::<Vec<_>>());
+            for (i, &p) in ids.iter().enumerate() {
+                assert_eq!(b.part(i)?, Some(p));
+                assert_eq!(b.triangle(i)?.part, Some(p));
+            }
+            assert_eq!(
+                b.part(ids.len()).err().map(|e| e.code()),
+                Some(Code::TriangleIndex)
+            );
+            let max = ids.iter().copied().max().unwrap_or(0) as usize;
+            assert!(b.check_parts(max + 1).is_ok());
+            assert_eq!(
+                b.check_parts(max).err().map(|e| e.code()),
+                Some(Code::PartId),
+                "width {code}"
+            );
+        }
+        // Without a width there are no ids, whatever the triangles said.
+        let raw = block_with_parts(0, &[9])?;
+        let b = TriangleBlock::parse(&raw, Some(0))?;
+        assert!(!b.has_parts() && b.part(0)?.is_none() && b.check_parts(0).is_ok());
+        assert_eq!(raw.len(), HEAD_LEN + 8 + 12);
+        Ok(())
+    }
+
+    #[test]
+    fn part_ids_must_fit_their_width_and_their_padding_be_zero() -> Result<()> {
+        let mut w = TriangleBlockWriter::new(1 << ATTR_PART_WIDTH_SHIFT);
+        let t = |part| Triangle {
+            v: [0; 3],
+            material: None,
+            part,
+        };
+        assert!(w.push_triangle(t(None)).is_err());
+        assert!(w.push_triangle(t(Some(256))).is_err());
+        assert!(w.push_triangle(t(Some(255))).is_ok());
+        // One u8 id, three bytes of padding before the vertices.
+        let mut raw = block_with_parts(1, &[3])?;
+        let pad = HEAD_LEN + 8 + 1;
+        assert_eq!(raw[pad..pad + 3], [0, 0, 0]);
+        raw[pad + 2] = 1;
+        assert_eq!(
+            TriangleBlock::parse(&raw, None).err().map(|e| e.code()),
+            Some(Code::TriangleLayout)
+        );
+        assert_eq!(part_id_width(0), 0);
+        assert_eq!(part_id_width(1 << 24), 3);
+        Ok(())
     }
 }

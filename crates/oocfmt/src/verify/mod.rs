@@ -22,7 +22,7 @@ use crate::reader::{
 };
 use crate::records::LodKinds;
 use crate::source::ByteSource;
-use crate::summary::{survey_block, BlockFacts};
+use crate::summary::{survey_block, BlockFacts, BlockSchema};
 use crate::trailer::{Trailer, TRAILER_LEN};
 use crate::Checksums;
 
@@ -339,10 +339,7 @@ impl Verifier<'_> {
             limits: self.opts.limits,
             checksums: self.opts.checksums,
         };
-        let attrs = index
-            .metadata
-            .as_ref()
-            .map(|m| m.schema.triangle_attributes());
+        let schema = index.metadata.as_ref().map(BlockSchema::of);
         let lod = LodKinds::of_header(&index.header);
         let done = AtomicU64::new(0);
         let src = self.src;
@@ -352,7 +349,7 @@ impl Verifier<'_> {
             .map(|e| {
                 let e = e.as_ref().filter(|e| e.stored_length > 0)?;
                 let r = read_block_data(src, e, &ropts)
-                    .and_then(|raw| survey_block(e, &raw, attrs, lod));
+                    .and_then(|raw| survey_block(e, &raw, schema, lod));
                 progress(
                     done.fetch_add(u64::from(e.stored_length), Ordering::Relaxed)
                         + u64::from(e.stored_length),

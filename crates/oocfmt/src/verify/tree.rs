@@ -13,7 +13,7 @@ use crate::records::LodKinds;
 use crate::records::{
     lod_child_treelets, Node, Rlod, TreeletBlock, Voxel, MAX_TREE_DEPTH as MAX_DEPTH, NO_PROXY,
 };
-use crate::summary::BlockFacts;
+use crate::summary::{BlockFacts, PartFacts};
 
 /// What a treelet root inherits from its parent LOD node.
 #[derive(Clone, Copy)]
@@ -420,15 +420,25 @@ impl Walk<'_> {
         c.treelets = self.slots.reached;
         c.proxies = self.proxy_blocks.len() as u64;
         let mut max_material: Option<u16> = None;
+        let mut parts: Vec<Option<PartFacts>> = vec![None; meta.parts.len()];
         for (id, f) in (0u32..).zip(self.facts) {
             if let Some(BlockFacts::Triangle {
                 triangles,
                 vertices,
                 primaries,
                 max_material: mm,
+                parts: block_parts,
                 ..
             }) = f
             {
+                for bp in block_parts {
+                    if let Some(slot) = parts.get_mut(bp.part as usize) {
+                        match slot {
+                            Some(p) => p.merge(bp),
+                            None => *slot = Some(*bp),
+                        }
+                    }
+                }
                 c.triangles += u64::from(*primaries);
                 c.triangle_records += u64::from(*triangles);
                 c.vertices += u64::from(*vertices);
@@ -482,6 +492,7 @@ impl Walk<'_> {
                 None,
             );
         }
+        part_totals(v, meta, &parts);
         let features = index.header.compatible_features;
         let has_proxy_blocks = index
             .entries
@@ -494,6 +505,40 @@ impl Walk<'_> {
             v.note_code(
                 Code::HeaderFeatureMismatch,
                 format!("compatible features {features:#x} do not match the content"),
+                None,
+            );
+        }
+    }
+}
+
+/// Compares each part's triangles and bounds with what the triangle blocks hold (`found`, by
+/// part id; spec §9): the counts exactly (`PART_COUNTS`), the bounds as the exact box of the
+/// corners, all zero for a part without triangles (`PART_BOUNDS`).
+fn part_totals(v: &mut Verifier<'_>, meta: &Metadata, found: &[Option<PartFacts>]) {
+    for (i, (part, f)) in meta.parts.iter().zip(found).enumerate() {
+        let (triangles, lo, hi) = match f {
+            Some(f) => (f.triangles, f.bounds_min, f.bounds_max),
+            None => (0, [0.0; 3], [0.0; 3]),
+        };
+        if part.triangles != triangles {
+            v.note_code(
+                Code::PartCounts,
+                format!(
+                    "part {i} `{}` says {} triangles, the blocks hold {triangles}",
+                    part.name, part.triangles
+                ),
+                None,
+            );
+        }
+        // Equal as numbers (the bounds are exact; -0 and +0 are one corner).
+        let same = |a: [f32; 3], b: [f32; 3]| a == b;
+        if !same(part.bounds_min, lo) || !same(part.bounds_max, hi) {
+            v.note_code(
+                Code::PartBounds,
+                format!(
+                    "part {i} `{}` has bounds {:?} .. {:?}, its triangles {lo:?} .. {hi:?}",
+                    part.name, part.bounds_min, part.bounds_max
+                ),
                 None,
             );
         }
@@ -515,8 +560,7 @@ fn lod_area(v: &mut Verifier<'_>, id: u32, block: &TreeletBlock<'_>) {
                     "LOD node at {pos}: its LOD entry is at {at}, the previous one ends at {next}"
                 ));
             }
-            let len = entry.voxel_len + entry.rlod.map_or(0, |_| crate::records::RLOD_LEN);
-            next = at.saturating_add(len);
+            next = at.saturating_add(entry.byte_len());
         }
         Ok(())
     });

@@ -5,8 +5,10 @@
 
 use std::path::{Path, PathBuf};
 
-use oocfmt::metadata::{Build, Counts, Material, Provenance, Scene, Schema, TreeletRef};
-use oocfmt::records::triangle::{oct_encode, ATTR_COLOURS, ATTR_MATERIALS, ATTR_NORMALS};
+use oocfmt::metadata::{Build, Counts, Material, Part, Provenance, Scene, Schema, TreeletRef};
+use oocfmt::records::triangle::{
+    oct_encode, ATTR_COLOURS, ATTR_MATERIALS, ATTR_NORMALS, ATTR_PART_WIDTH_SHIFT,
+};
 use oocfmt::records::{
     Footprint, LodKinds, Node, ProxyRecord, Rlod, Sample, TreeletBlockWriter, Triangle,
     TriangleBlockWriter, Vertex, Voxel, NO_PROXY, PROXY_DIRECTIONS,
@@ -85,6 +87,7 @@ pub const FIXTURES: &[(&str, Build1)] = &[
     ("fx-lod-lz4", write_lod),
     ("fx-deep-zstd", write_deep),
     ("fx-filtered-lz4", write_filtered),
+    ("fx-parts-lz4", write_parts),
     ("fx-empty", write_empty),
 ];
 
@@ -141,6 +144,7 @@ pub fn metadata(
             generator: "oocfmt tests/common".into(),
             sources: vec!["hand-built".into()],
         },
+        parts: Vec::new(),
     }
 }
 
@@ -221,10 +225,12 @@ pub fn write_quad(path: &Path) -> TestResult<oocfmt::WriteSummary> {
     tri.push_triangle(Triangle {
         v: [0, 1, 2],
         material: None,
+        part: None,
     })?;
     tri.push_triangle(Triangle {
         v: [0, 2, 3],
         material: None,
+        part: None,
     })?;
     tri.push_list(1)?;
     tri.push_list(0)?;
@@ -261,8 +267,78 @@ pub fn write_quad(path: &Path) -> TestResult<oocfmt::WriteSummary> {
 /// block; its right child is a leaf. A triangle block with normals, colours and materials (48
 /// repetitive triangles, so LZ4 shrinks it) and a proxy block. LZ4, 4 KiB blocks.
 pub fn write_lod(path: &Path) -> TestResult<oocfmt::WriteSummary> {
-    let attrs = ATTR_NORMALS | ATTR_COLOURS | ATTR_MATERIALS;
-    let mut w = Writer::create(path, opts(12, Codec::Lz4))?;
+    write_lod_with_parts(path, &[], 0)
+}
+
+/// The triangle block of [`write_lod`] with `attrs` and `count` ≥ 48 triangles, all primaries:
+/// triangle `i` alternates between the square's two halves and its two materials, and has the
+/// part `part(i)`. Its list names triangles 0–3 and 47.
+pub fn lod_triangle_block(
+    attrs: u16,
+    count: u16,
+    part: impl Fn(u16) -> Option<u32>,
+) -> TestResult<Vec<u8>> {
+    let mut tri = TriangleBlockWriter::new(attrs);
+    square_vertices(&mut tri, 0.5, attrs)?;
+    for i in 0..count {
+        let v = if i % 2 == 0 { [0, 1, 2] } else { [0, 2, 3] };
+        tri.push_triangle(Triangle {
+            v,
+            material: Some(i % 2),
+            part: part(i),
+        })?;
+    }
+    for e in [0, 1, 2, 3, 47] {
+        tri.push_list(e)?;
+    }
+    tri.set_primary_count(count);
+    Ok(tri.finish())
+}
+
+/// The parts of `fx-parts-lz4`: an assembly with no triangles of its own over a bracket over a
+/// bolt (a hierarchy three deep), each with the box of the fixture's square, which both
+/// triangle shapes fill.
+pub fn fixture_parts() -> Vec<Part> {
+    let square = ([0.0, 0.0, 0.5], [1.0, 1.0, 0.5]);
+    let part = |name: &str, parent, source, triangles: u64| Part {
+        name: name.into(),
+        parent,
+        source,
+        triangles,
+        bounds_min: if triangles > 0 { square.0 } else { [0.0; 3] },
+        bounds_max: if triangles > 0 { square.1 } else { [0.0; 3] },
+    };
+    vec![
+        part("assembly", None, Some(0), 0),
+        part("bracket", Some(0), Some(0), 24),
+        part("bolt ✓", Some(1), None, 24),
+    ]
+}
+
+/// `fx-parts-lz4`: [`write_lod`]'s file with [`fixture_parts`] (`PART_IDS`, minor 3): u8 part
+/// ids, the even triangles the bracket's and the odd ones the bolt's, and the LOD node's part
+/// word naming the bolt.
+pub fn write_parts(path: &Path) -> TestResult<oocfmt::WriteSummary> {
+    write_lod_with_parts(path, &fixture_parts(), 2)
+}
+
+/// [`write_lod`] with a part table: with two or more parts, triangle `i` gets part `1 + i % 2`
+/// (of `parts.len()`) and the LOD entry ends with the part word `lod_part`.
+pub fn write_lod_with_parts(
+    path: &Path,
+    parts: &[Part],
+    lod_part: u32,
+) -> TestResult<oocfmt::WriteSummary> {
+    let ids = parts.len() >= 2;
+    let attrs = ATTR_NORMALS
+        | ATTR_COLOURS
+        | ATTR_MATERIALS
+        | (oocfmt::records::part_id_width(parts.len()) << ATTR_PART_WIDTH_SHIFT);
+    let o = WriteOptions {
+        lod: LodKinds::VOXEL.with_parts(ids),
+        ..opts(12, Codec::Lz4)
+    };
+    let mut w = Writer::create(path, o)?;
     // Block 0: level 0.
     let mut t = TreeletBlockWriter::new();
     t.begin_treelet();
@@ -273,6 +349,9 @@ pub fn write_lod(path: &Path) -> TestResult<oocfmt::WriteSummary> {
         right: 4,
     });
     let vox = t.push_voxel(&Voxel::six(six_samples()), false);
+    if ids {
+        t.push_lod_part(lod_part);
+    }
     t.push_node(&Node::Lod {
         axis: 1,
         split: 0.5,
@@ -294,20 +373,9 @@ pub fn write_lod(path: &Path) -> TestResult<oocfmt::WriteSummary> {
     t.push_node(&leaf(3, 2, 2));
     assert_eq!(w.write_block(BlockKind::Treelet, 1, 2, &t.finish())?, 1);
     // Block 2: triangles.
-    let mut tri = TriangleBlockWriter::new(attrs);
-    square_vertices(&mut tri, 0.5, attrs)?;
-    for i in 0..48u16 {
-        let v = if i % 2 == 0 { [0, 1, 2] } else { [0, 2, 3] };
-        tri.push_triangle(Triangle {
-            v,
-            material: Some(i % 2),
-        })?;
-    }
-    for e in [0, 1, 2, 3, 47] {
-        tri.push_list(e)?;
-    }
-    tri.set_primary_count(48);
-    assert_eq!(w.write_block(BlockKind::Triangle, 0, 48, &tri.finish())?, 2);
+    let part = |i: u16| ids.then_some(1 + u32::from(i % 2));
+    let tri = lod_triangle_block(attrs, 48, part)?;
+    assert_eq!(w.write_block(BlockKind::Triangle, 0, 48, &tri)?, 2);
     // Block 3: the proxy of the LOD node in block 0.
     let mut p = Vec::new();
     proxy(0, 2.0).encode_into(&mut p);
@@ -342,7 +410,7 @@ pub fn write_lod(path: &Path) -> TestResult<oocfmt::WriteSummary> {
             diffuse: [0.8, 0.1, 0.1],
         },
     ];
-    let meta = metadata(
+    let mut meta = metadata(
         scene([0.0; 3], [2.0, 1.0, 1.0]),
         Some(TreeletRef {
             block: 0,
@@ -353,6 +421,7 @@ pub fn write_lod(path: &Path) -> TestResult<oocfmt::WriteSummary> {
         materials,
         2,
     );
+    meta.parts = parts.to_vec();
     Ok(w.finish(&meta)?)
 }
 
@@ -370,6 +439,7 @@ pub fn write_deep(path: &Path) -> TestResult<oocfmt::WriteSummary> {
             tri.push_triangle(Triangle {
                 v: if i % 2 == 0 { [0, 1, 2] } else { [2, 3, 0] },
                 material: None,
+                part: None,
             })?;
         }
         for e in 0..n.min(6) {
@@ -561,7 +631,11 @@ pub fn write_filtered_with(path: &Path, kinds: LodKinds) -> TestResult<oocfmt::W
     square_vertices(&mut tri, 0.5, ATTR_COLOURS)?;
     for i in 0..4u16 {
         let v = if i % 2 == 0 { [0, 1, 2] } else { [0, 2, 3] };
-        tri.push_triangle(Triangle { v, material: None })?;
+        tri.push_triangle(Triangle {
+            v,
+            material: None,
+            part: None,
+        })?;
     }
     for e in 0..4 {
         tri.push_list(e)?;
@@ -641,7 +715,7 @@ pub fn open_bytes(bytes: &[u8], opts: oocfmt::ReadOptions) -> oocfmt::Result<Rea
 
 /// Reads every block and decodes it by kind (walking treelet blocks); the first error.
 pub fn read_all_blocks(r: &Reader) -> oocfmt::Result<()> {
-    let attrs = r.metadata().schema.triangle_attributes();
+    let attrs = r.metadata().triangle_attributes();
     for id in 0..r.header().sections.block_count {
         let b = r.read_block(id)?;
         match b.entry.kind {
@@ -726,6 +800,14 @@ pub fn proptest_config(cases: u32) -> proptest::test_runner::Config {
     }
     c.failure_persistence = None;
     c
+}
+
+/// The minor version in a file's header: the metadata decoder's form.
+pub fn minor_of(b: &[u8]) -> u16 {
+    u16::from_le_bytes([
+        b[oocfmt::header::OFF_MINOR],
+        b[oocfmt::header::OFF_MINOR + 1],
+    ])
 }
 
 /// The metadata bytes of a valid file.

@@ -31,6 +31,8 @@ fn run_target(target: &str, data: &[u8]) -> TestResult {
         "triangle_decode" => props::triangle_decode(data),
         // The tracer's target: `crates/oocfmt-trace/tests/trace/fuzz_corpus.rs` replays it.
         "render_file" => {}
+        // The importers': `crates/oocfmt-meshio/tests/import/fuzz_corpus.rs` replays them.
+        "stl_import" | "ply_import" => {}
         other => return Err(format!("unknown fuzz target directory {other}").into()),
     }
     Ok(())

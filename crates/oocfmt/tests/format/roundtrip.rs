@@ -8,8 +8,8 @@ use crate::common;
 use common::{proptest_config, read_all_blocks, verify_bytes};
 use oocfmt::directory::BlockEntry;
 use oocfmt::header::{Header, SectionTable};
-use oocfmt::metadata::{Build, Counts, Material, Provenance, Scene, Schema, TreeletRef};
-use oocfmt::records::triangle::{oct_decode, oct_encode};
+use oocfmt::metadata::{Build, Counts, Material, Part, Provenance, Scene, Schema, TreeletRef};
+use oocfmt::records::triangle::{oct_decode, oct_encode, ATTR_PART_WIDTH};
 use oocfmt::records::{
     Footprint, LodKinds, Node, ProxyRecord, Sample, TreeletBlock, TreeletBlockWriter, Triangle,
     TriangleBlock, TriangleBlockWriter, Vertex, Voxel,
@@ -99,17 +99,47 @@ fn metadata() -> impl Strategy<Value = Metadata> {
         });
     let provenance = (text(), prop::collection::vec(text(), 0..3))
         .prop_map(|(generator, sources)| Provenance { generator, sources });
-    (scene, root, counts, schema, materials, build, provenance).prop_map(
-        |(scene, root, counts, schema, materials, build, provenance)| Metadata {
-            scene,
-            root,
-            counts,
-            schema,
-            materials,
-            build,
-            provenance,
-        },
+    // Raw parts: parent and source pick among what exists once the table is known.
+    let parts = prop::collection::vec(
+        (
+            text(),
+            any::<Option<u32>>(),
+            any::<Option<u32>>(),
+            any::<u64>(),
+            prop::array::uniform6(finite_f32()),
+        ),
+        0..5,
+    );
+    (
+        scene, root, counts, schema, materials, build, provenance, parts,
     )
+        .prop_map(
+            |(scene, root, counts, schema, materials, build, provenance, parts)| {
+                let sources = provenance.sources.len() as u32;
+                let parts = parts
+                    .into_iter()
+                    .zip(0u32..)
+                    .map(|((name, parent, source, triangles, b), i)| Part {
+                        name,
+                        parent: parent.filter(|_| i > 0).map(|p| p % i.max(1)),
+                        source: source.filter(|_| sources > 0).map(|s| s % sources.max(1)),
+                        triangles,
+                        bounds_min: [b[0], b[1], b[2]],
+                        bounds_max: [b[3], b[4], b[5]],
+                    })
+                    .collect();
+                Metadata {
+                    scene,
+                    root,
+                    counts,
+                    schema,
+                    materials,
+                    build,
+                    provenance,
+                    parts,
+                }
+            },
+        )
 }
 
 /// A valid sample: not empty, not single, axis < 3, u and v ≠ −32.
@@ -281,13 +311,19 @@ fn shape() -> impl Strategy<Value = Shape> {
     })
 }
 
+/// A node as laid out: its position, the node, and its LOD entry's voxel and part word as they
+/// decode.
+type Laid = (usize, Node, Option<Voxel>, Option<u32>);
+
 /// Lays `s` out in preorder, voxels as a file with (`filtered`) or without `LOD_FILTERED`
-/// stores them; appends `(position, node, voxel as decoded)` for every node.
+/// stores them, each LOD entry ending with a part word below `parts` where the file has part
+/// ids (two or more parts); appends what every node decodes to.
 fn emit(
     w: &mut TreeletBlockWriter,
     s: &Shape,
     filtered: bool,
-    out: &mut Vec<(usize, Node, Option<Voxel>)>,
+    parts: usize,
+    out: &mut Vec<Laid>,
 ) -> oocfmt::Result<()> {
     let pos = w.next_node_pos();
     match s {
@@ -305,12 +341,12 @@ fn emit(
             };
             w.push_node(&placeholder);
             let slot = out.len();
-            out.push((pos, placeholder, None));
+            out.push((pos, placeholder, None, None));
             let mut units = [0u16; 2];
             for (k, child) in [left, right].into_iter().enumerate() {
                 if let Some(c) = child {
                     let at = w.next_node_pos();
-                    emit(w, c, filtered, out)?;
+                    emit(w, c, filtered, parts, out)?;
                     units[k] = TreeletBlockWriter::units_between(pos, at)?;
                 }
             }
@@ -334,6 +370,10 @@ fn emit(
             voxel,
         } => {
             let voxel_offset = w.push_voxel(voxel, filtered);
+            let part = (parts >= 2).then(|| child_treelet % parts as u32);
+            if let Some(p) = part {
+                w.push_lod_part(p);
+            }
             let node = Node::Lod {
                 axis: *axis,
                 split: *split,
@@ -346,7 +386,7 @@ fn emit(
                 proxy: *proxy,
             };
             w.push_node(&node);
-            out.push((pos, node, Some(as_stored(*voxel, filtered))));
+            out.push((pos, node, Some(as_stored(*voxel, filtered)), part));
         }
         Shape::Leaf {
             count,
@@ -359,7 +399,7 @@ fn emit(
                 block: *block,
             };
             w.push_node(&node);
-            out.push((pos, node, None));
+            out.push((pos, node, None, None));
         }
     }
     Ok(())
@@ -435,7 +475,7 @@ struct Built {
 }
 
 enum Expect {
-    Treelets(Vec<Vec<(usize, Node, Option<Voxel>)>>),
+    Treelets(Vec<Vec<Laid>>),
     Triangles {
         list: Vec<u16>,
         triangles: Vec<Triangle>,
@@ -446,8 +486,15 @@ enum Expect {
     Proxies(Vec<ProxyRecord>),
 }
 
-/// Encodes `spec` as a block of a file with (`filtered`) or without `LOD_FILTERED`.
-fn build(spec: &BlockSpec, level: u16, attrs: u16, filtered: bool) -> oocfmt::Result<Built> {
+/// Encodes `spec` as a block of a file with (`filtered`) or without `LOD_FILTERED`, whose part
+/// table has `parts` parts (ids where `attrs` has a part-id width, below `parts`).
+fn build(
+    spec: &BlockSpec,
+    level: u16,
+    attrs: u16,
+    filtered: bool,
+    parts: usize,
+) -> oocfmt::Result<Built> {
     Ok(match spec {
         BlockSpec::Treelets(shapes) => {
             let mut w = TreeletBlockWriter::new();
@@ -456,7 +503,7 @@ fn build(spec: &BlockSpec, level: u16, attrs: u16, filtered: bool) -> oocfmt::Re
                 w.begin_treelet();
                 let start = w.next_node_pos();
                 let mut nodes = Vec::new();
-                emit(&mut w, s, filtered, &mut nodes)?;
+                emit(&mut w, s, filtered, parts, &mut nodes)?;
                 // Positions relative to the treelet start, as the walk reports them absolute.
                 let _ = start;
                 all.push(nodes);
@@ -486,10 +533,12 @@ fn build(spec: &BlockSpec, level: u16, attrs: u16, filtered: bool) -> oocfmt::Re
                 vertices.push(v);
             }
             let mut triangles = Vec::new();
-            for &(v, m) in &t.triangles {
+            let ids = attrs & ATTR_PART_WIDTH != 0;
+            for (i, &(v, m)) in (0u32..).zip(&t.triangles) {
                 let tri = Triangle {
                     v,
                     material: (attrs & 4 != 0).then_some(m),
+                    part: ids.then(|| (u32::from(m) + 7 * i) % parts.max(1) as u32),
                 };
                 w.push_triangle(tri)?;
                 triangles.push(tri);
@@ -552,15 +601,15 @@ fn check_block(b: &oocfmt::Block, e: &Expect) -> Result<(), TestCaseError> {
             prop_assert_eq!(block.treelet_count(), treelets.len());
             let mut seen = Vec::new();
             let sum = block
-                .walk(|t, pos, n| {
-                    seen.push((t, pos, *n));
+                .walk_lods(|t, pos, n, entry| {
+                    seen.push((t, pos, *n, entry.part));
                     Ok(())
                 })
                 .map_err(|e| TestCaseError::fail(e.to_string()))?;
             let mut expected = Vec::new();
             for (t, nodes) in treelets.iter().enumerate() {
-                for &(pos, node, voxel) in nodes {
-                    expected.push((t, pos, node));
+                for &(pos, node, voxel, part) in nodes {
+                    expected.push((t, pos, node, part));
                     prop_assert_eq!(block.node(pos).ok(), Some(node));
                     if let (Node::Lod { voxel_offset, .. }, Some(v)) = (node, voxel) {
                         prop_assert_eq!(block.voxel(voxel_offset).ok(), Some(v));
@@ -652,7 +701,8 @@ fn round_trip(
     filtered: bool,
 ) -> Result<(), TestCaseError> {
     let fail = |e: &dyn std::fmt::Display| TestCaseError::fail(e.to_string());
-    let attrs = meta.schema.triangle_attributes();
+    let attrs = meta.triangle_attributes();
+    let parts = meta.parts.len();
     levels.sort_unstable();
     let mut level_iter = levels.into_iter();
     let mut blocks = Vec::new();
@@ -662,7 +712,7 @@ fn round_trip(
         } else {
             0
         };
-        blocks.push(build(s, level, attrs, filtered).map_err(|e| fail(&e))?);
+        blocks.push(build(s, level, attrs, filtered, parts).map_err(|e| fail(&e))?);
     }
     let block_size = 1usize << log2;
     blocks.retain(|b| b.raw.len() <= block_size);
@@ -672,7 +722,8 @@ fn round_trip(
         LodKinds::VOXEL.filtered()
     } else {
         LodKinds::VOXEL
-    };
+    }
+    .with_parts(parts >= 2);
     let opts = WriteOptions {
         block_size_log2: log2,
         codec,
@@ -694,12 +745,19 @@ fn round_trip(
         prop_assert_eq!(r.identity(), summary.identity);
         prop_assert_eq!(r.file_len(), summary.file_length);
         prop_assert_eq!(r.header().block_size_log2, log2);
-        // Spec §11: an unfiltered voxel-only file is a 1.0 file; a filtered one is 1.2.
-        let (minor, bits) = if filtered {
+        // Spec §11: an unfiltered voxel-only file is a 1.0 file; a filtered one is 1.2; one
+        // with a part table 1.3, with part ids from two parts on.
+        let (mut minor, mut bits) = if filtered {
             (2, oocfmt::header::INCOMPAT_LOD_FILTERED)
         } else {
             (0, 0)
         };
+        if parts > 0 {
+            minor = 3;
+        }
+        if parts >= 2 {
+            bits |= oocfmt::header::INCOMPAT_PART_IDS;
+        }
         prop_assert_eq!((r.header().major, r.header().minor), (1, minor));
         prop_assert_eq!(r.header().incompatible_features, bits);
         prop_assert_eq!(r.lod_kinds(), lod);
@@ -961,7 +1019,7 @@ proptest! {
     #[test]
     fn treelet_and_triangle_blocks_round_trip_alone(spec in block_spec(), attrs in 0u16..8, filtered in any::<bool>()) {
         let lod = if filtered { LodKinds::VOXEL.filtered() } else { LodKinds::VOXEL };
-        let b = build(&spec, 0, attrs, filtered).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        let b = build(&spec, 0, attrs, filtered, 0).map_err(|e| TestCaseError::fail(e.to_string()))?;
         let block = oocfmt::Block {
             id: 0,
             entry: BlockEntry {
@@ -978,7 +1036,8 @@ proptest! {
             lod,
         };
         check_block(&block, &b.expect)?;
-        let facts = oocfmt::summary::survey_block(&block.entry, &b.raw, Some(attrs), lod);
+        let schema = oocfmt::summary::BlockSchema { triangle_attributes: attrs, parts: 0 };
+        let facts = oocfmt::summary::survey_block(&block.entry, &b.raw, Some(schema), lod);
         prop_assert!(facts.is_ok(), "{:?}", facts.err().map(|e| e.to_string()));
         if b.kind == BlockKind::Treelet {
             prop_assert!(TreeletBlock::parse_with(&b.raw, lod).is_ok());
@@ -1028,14 +1087,23 @@ proptest! {
 
     #[test]
     fn metadata_round_trips_and_tolerates_newer_fields(meta in metadata(), extra in prop::collection::vec(any::<u8>(), 1..16)) {
+        use oocfmt::header::{VERSION_MINOR, VERSION_MINOR_FILTERED};
         let bytes = meta.encode().map_err(|e| TestCaseError::fail(e.to_string()))?;
-        prop_assert_eq!(Metadata::decode(&bytes, false).ok(), Some(meta.clone()));
+        // The writer's minor for the value: 1.3 exactly with a part table.
+        let minor = meta.minor_version().max(VERSION_MINOR_FILTERED);
+        prop_assert_eq!(meta.parts.is_empty(), minor < 3);
+        prop_assert_eq!(Metadata::decode(&bytes, minor).ok(), Some(meta.clone()));
+        // A newer file always has the part-table field: an empty table is its zero length.
         let mut longer = bytes.clone();
+        if meta.parts.is_empty() {
+            longer.push(0);
+        }
+        prop_assert_eq!(Metadata::decode(&longer, VERSION_MINOR).ok(), Some(meta.clone()));
         longer.extend_from_slice(&extra);
-        prop_assert_eq!(Metadata::decode(&longer, true).ok(), Some(meta.clone()));
-        prop_assert_eq!(Metadata::decode(&longer, false).err().map(|e| e.code()), Some(oocfmt::Code::MetadataDecode));
+        prop_assert_eq!(Metadata::decode(&longer, VERSION_MINOR + 1).ok(), Some(meta.clone()));
+        prop_assert_eq!(Metadata::decode(&longer, VERSION_MINOR).err().map(|e| e.code()), Some(oocfmt::Code::MetadataDecode));
         for cut in [0, bytes.len() / 2, bytes.len() - 1] {
-            prop_assert!(Metadata::decode(&bytes[..cut], true).is_err());
+            prop_assert!(Metadata::decode(&bytes[..cut], VERSION_MINOR + 1).is_err());
         }
     }
 

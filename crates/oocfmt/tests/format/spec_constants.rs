@@ -174,6 +174,7 @@ fn rlod_table_matches_the_code() {
         ("LOD_RLODS", header::INCOMPAT_LOD_RLODS),
         ("LOD_NO_VOXELS", header::INCOMPAT_LOD_NO_VOXELS),
         ("LOD_FILTERED", header::INCOMPAT_LOD_FILTERED),
+        ("PART_IDS", header::INCOMPAT_PART_IDS),
     ] {
         let row = format!("| incompatible | {} | `{name}` |", bit.trailing_zeros());
         assert!(s.contains(&row), "{row}");
@@ -264,6 +265,7 @@ fn codes_named_in_the_prose_exist() {
         "LOD_RLODS",
         "LOD_NO_VOXELS",
         "LOD_FILTERED",
+        "PART_IDS",
     ];
     let known: BTreeSet<&str> = Code::ALL.iter().map(|c| c.as_str()).collect();
     let mut named = BTreeSet::new();
@@ -290,4 +292,41 @@ fn codes_named_in_the_prose_exist() {
         "only {} codes found in the prose",
         named.len()
     );
+}
+
+/// §8's part-id width code (bits 3–4, its thresholds), §6.2's part word, §12's part limit and §3's
+/// minor for parts, as the code has them.
+#[test]
+fn part_ids_match_the_spec() {
+    use oocfmt::metadata::MAX_PARTS;
+    use oocfmt::records::triangle::{part_id_width, ATTR_PART_WIDTH, ATTR_PART_WIDTH_SHIFT};
+    use oocfmt::records::PART_WORD_LEN;
+    let s = spec();
+    let (lo, hi) = (
+        ATTR_PART_WIDTH_SHIFT,
+        ATTR_PART_WIDTH_SHIFT + ATTR_PART_WIDTH.count_ones() as u16 - 1,
+    );
+    assert_eq!(ATTR_PART_WIDTH >> ATTR_PART_WIDTH_SHIFT, 0b11);
+    let cell = format!("bits {lo}–{hi} part-id width code (since 1.3)");
+    assert!(s.contains(&cell), "{cell}");
+    let reserved = format!("triangle block attribute bits {}–15", hi + 1);
+    assert!(s.contains(&reserved), "{reserved}");
+    // The thresholds: the last count of each width, and the one after it.
+    for (last, code) in [(1usize, 0u16), (256, 1), (65536, 2)] {
+        assert_eq!(part_id_width(last), code, "{last} parts");
+        assert_eq!(part_id_width(last + 1), code + 1, "{} parts", last + 1);
+    }
+    for needle in [
+        "1 (u8) for *P* ≤ 256, 2 (u16) for",
+        "*P* ≤ 65536, else 3 (u32)",
+        "(u8, u16 or u32 for *c* = 1, 2, 3)",
+    ] {
+        assert!(s.contains(needle), "{needle}");
+    }
+    let word = format!("then {PART_WORD_LEN} bytes of part word where the file has `PART_IDS`");
+    assert!(s.contains(&word), "{word}");
+    assert_eq!(MAX_PARTS, 1 << 24);
+    assert!(s.contains("| parts | 2^24 in the part table (§9)"));
+    assert_eq!(header::VERSION_MINOR_PARTS, 3);
+    assert!(s.contains("3 when the metadata has a part table"));
 }
