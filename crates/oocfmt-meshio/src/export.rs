@@ -7,8 +7,13 @@
 //! with a non-zero `scene.origin` is exported in world coordinates (`origin + stored`, in
 //! f64), which is no longer bit-exact, and the report says so and gives the largest rounding
 //! error. Vertices are written once per block, only those the primaries use.
+//!
+//! A container with parts gets its part table back (OBJ: comments and `g` lines; PLY: header
+//! comments and a face property), and its faces grouped by part in the table's order, each
+//! part's in file order (`export/parts.rs`).
 
 mod obj;
+mod parts;
 mod ply;
 
 use std::path::{Path, PathBuf};
@@ -21,18 +26,24 @@ pub use crate::obj_writer::WriteError;
 pub use obj::write_obj;
 pub use ply::write_ply;
 
-/// How [`write_obj`] and [`write_ply`] place positions.
+/// How [`write_obj`] and [`write_ply`] place positions and order faces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ExportOptions {
     /// Add the container's `scene.origin` to positions when it is not zero (then written as
     /// f64, not bit-exact). Off, positions are the stored ones and the origin is only noted.
     pub world_coordinates: bool,
+    /// Most faces held in memory to put a container with parts in part order: each pass over
+    /// the triangle blocks collects this many (40 bytes each), so memory stays bounded
+    /// whatever the model's size.
+    pub faces_per_pass: u64,
 }
 
 impl Default for ExportOptions {
     fn default() -> Self {
         ExportOptions {
             world_coordinates: true,
+            // 256 MiB of faces: a 100M-triangle model takes 12 passes.
+            faces_per_pass: 1 << 23,
         }
     }
 }
@@ -51,6 +62,8 @@ pub struct ExportReport {
     pub bytes: u64,
     /// Materials written (to the `.mtl` for OBJ, as header comments for PLY).
     pub materials: usize,
+    /// Parts written (the container's part table; 0 when it has none).
+    pub parts: usize,
     /// The `.mtl` written beside an OBJ, when the container has materials.
     pub mtl: Option<PathBuf>,
     /// The origin added to every position (zero when none was).
@@ -103,7 +116,19 @@ pub enum ExportError {
         /// The vertices the export would write.
         vertices: u64,
     },
-    /// The PLY export's two passes (vertices, then faces) found different counts.
+    /// A part holds another number of primaries than the metadata's part table says.
+    #[error("{file}: the part table counts {expected} triangles in part {part}, but the triangle blocks hold {found}")]
+    PartCountMismatch {
+        /// The container's name.
+        file: String,
+        /// The part's index in the table.
+        part: usize,
+        /// The triangle count in the table.
+        expected: u64,
+        /// The primaries the triangle blocks give that part.
+        found: u64,
+    },
+    /// The export's passes (vertices, then faces) found different counts.
     #[error("{file}: the container changed while it was being exported")]
     Changed {
         /// The container's name.
@@ -111,11 +136,22 @@ pub enum ExportError {
     },
 }
 
+/// A primary triangle as the exporters write it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Face {
+    /// Its vertices' export numbers (from 0).
+    corners: [u64; 3],
+    material: Option<u16>,
+    /// Its part: the id stored with it, 0 in a file of one part, `None` without parts.
+    part: Option<u32>,
+}
+
 /// Receives the primaries of a container: vertices numbered from 0 in the order of first use
 /// (per block), then the triangles that use them.
 trait PrimarySink {
     fn vertex(&mut self, index: u64, v: &Vertex) -> Result<(), ExportError>;
-    fn triangle(&mut self, corners: [u64; 3], material: Option<u16>) -> Result<(), ExportError>;
+    /// `rank`: how many faces of the same part came before this one in the walk.
+    fn triangle(&mut self, face: Face, rank: u64) -> Result<(), ExportError>;
 }
 
 /// An open container and its triangle blocks in file order.
@@ -135,7 +171,7 @@ struct Walked {
 impl Container {
     fn open(path: &Path) -> Result<Container, ExportError> {
         let reader = Reader::open(path, ReadOptions::default())?;
-        let attrs = reader.metadata().schema.triangle_attributes();
+        let attrs = reader.metadata().triangle_attributes();
         let blocks = reader
             .entries()
             .iter()
@@ -168,16 +204,20 @@ impl Container {
         total: u64,
     ) -> Result<Walked, ExportError> {
         let materials = self.meta().materials.len();
+        let parts = self.meta().parts.len();
         let mut walked = Walked {
             triangles: 0,
             vertices: 0,
         };
+        // Faces so far per part (one counter for all in a file without parts or with one).
+        let mut ranks: Vec<u64> = vec![0; parts.max(1)];
         let mut local: Vec<Option<u64>> = Vec::new();
         for (done, &id) in (1u64..).zip(&self.blocks) {
             let block = self.reader.read_block(id)?;
             let in_block = |e: oocfmt::Error| e.in_block(id).in_file(self.reader.name());
             let tb = block.triangles(self.attrs).map_err(in_block)?;
             tb.check_contents().map_err(in_block)?;
+            tb.check_parts(parts).map_err(in_block)?;
             local.clear();
             local.resize(tb.vertex_count(), None);
             for t in 0..tb.primary_count() {
@@ -210,7 +250,18 @@ impl Container {
                         }
                     };
                 }
-                sink.triangle(corners, tri.material)?;
+                let part = tri.part.or((parts > 0).then_some(0));
+                let counter = ranks.get_mut(part.unwrap_or(0) as usize);
+                let rank = counter.as_deref().copied().unwrap_or(0);
+                if let Some(c) = counter {
+                    *c += 1;
+                }
+                let face = Face {
+                    corners,
+                    material: tri.material,
+                    part,
+                };
+                sink.triangle(face, rank)?;
                 walked.triangles += 1;
             }
             progress(done_before + done, total);
@@ -222,6 +273,21 @@ impl Container {
                 expected,
                 found: walked.triangles,
             });
+        }
+        if parts > 1 {
+            let table = self.meta().parts.iter().map(|p| p.triangles);
+            if let Some((part, (expected, found))) = table
+                .zip(ranks)
+                .enumerate()
+                .find(|(_, (want, got))| want != got)
+            {
+                return Err(ExportError::PartCountMismatch {
+                    file: self.name(),
+                    part,
+                    expected,
+                    found,
+                });
+            }
         }
         Ok(walked)
     }
@@ -261,8 +327,9 @@ impl Placement {
     }
 }
 
-/// Material names usable on an OBJ `usemtl` line and unique: whitespace becomes `_`, an
-/// empty name becomes `material_N`, and a repeated name gets `_N` appended.
+/// Material names usable on an OBJ `usemtl` line and unique: whitespace and `\` (which would
+/// continue the line) become `_`, an empty name becomes `material_N`, and a repeated name
+/// gets `_N` appended.
 fn material_names(materials: &[Material]) -> Vec<String> {
     let mut seen = std::collections::HashSet::new();
     materials
@@ -273,7 +340,7 @@ fn material_names(materials: &[Material]) -> Vec<String> {
                 .name
                 .chars()
                 .map(|c| {
-                    if c.is_whitespace() || c.is_control() {
+                    if c.is_whitespace() || c.is_control() || c == '\\' {
                         '_'
                     } else {
                         c
@@ -301,10 +368,17 @@ mod tests {
             name: name.into(),
             diffuse: [0.5; 3],
         };
-        let names = material_names(&[m("steel"), m("red paint"), m(""), m("steel"), m("a\tb")]);
+        let names = material_names(&[
+            m("steel"),
+            m("red paint"),
+            m(""),
+            m("steel"),
+            m("a\tb"),
+            m("c\\"),
+        ]);
         assert_eq!(
             names,
-            ["steel", "red_paint", "material_2", "steel_3", "a_b"]
+            ["steel", "red_paint", "material_2", "steel_3", "a_b", "c_"]
         );
     }
 
@@ -325,6 +399,7 @@ mod tests {
             &meta,
             &ExportOptions {
                 world_coordinates: false,
+                ..ExportOptions::default()
             },
         );
         assert!(off.origin.is_none());

@@ -1,10 +1,10 @@
 //! `oocfmt-meshio`: the mesh formats outside the container.
 //!
-//! Importers ([`import::obj`], [`import::gltf`]) stream triangles into a
-//! [`import::TriangleSink`], which applies one bad-input policy for every format; [`export`]
-//! writes a container's full-detail triangles back out as OBJ or PLY; [`obj_writer`] is the
-//! streaming, atomic OBJ output the exporter and the scene generators share; [`mesh`] is the
-//! in-memory indexed mesh they all speak.
+//! Importers ([`import::obj`], [`import::gltf`], [`import::stl`], [`import::ply`]) stream
+//! triangles into a [`import::TriangleSink`], which applies one bad-input policy for every
+//! format; [`export`] writes a container's full-detail triangles back out as OBJ or PLY;
+//! [`obj_writer`] is the streaming, atomic OBJ output the exporter and the scene generators
+//! share; [`mesh`] is the in-memory indexed mesh they all speak.
 //!
 //! ```
 //! use oocfmt_meshio::import::{obj, MeshSink};

@@ -214,6 +214,11 @@ impl ObjWriter {
         self.put(format_args!("o {name}\n"))
     }
 
+    /// `g NAME`: starts a named group (a part under the current object).
+    pub fn group(&mut self, name: &str) -> Result<(), WriteError> {
+        self.put(format_args!("g {name}\n"))
+    }
+
     fn next_vertex(&mut self) -> u64 {
         self.stats.vertices += 1;
         self.stats.vertices

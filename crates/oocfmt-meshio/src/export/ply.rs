@@ -1,6 +1,9 @@
 //! Export to binary little-endian PLY: positions (f32, or f64 in world coordinates), normals,
 //! RGBA colours and a per-face `material_index` when the container has them. Material names
-//! and colours go in header comments.
+//! and colours go in header comments. A container with parts gets a face property
+//! `int part` (the part's index) and its table as header comments `comment part ID PARENT
+//! NAME` (PARENT −1 at the top level; the name escaped as [`crate::import::obj`] says), its
+//! faces grouped by part.
 //!
 //! PLY puts every vertex before every face and the counts in the header, so the blocks are
 //! read twice: vertices first behind a header of reserved length, then faces, then the header
@@ -11,14 +14,17 @@ use std::path::Path;
 
 use oocfmt::records::triangle::{oct_decode, Vertex};
 
+use super::parts::{walk_in_part_order, PartOrder};
 use super::{
-    material_names, Container, ExportError, ExportOptions, ExportReport, Placement, PrimarySink,
-    Walked,
+    material_names, Container, ExportError, ExportOptions, ExportReport, Face, Placement,
+    PrimarySink, Walked,
 };
+use crate::import::obj::part_table;
 use crate::obj_writer::{AtomicFile, WriteError};
 
-/// Writes the primaries of `container` to `out`, atomically. `progress` gets (block passes
-/// done, 2 × triangle blocks).
+/// Writes the primaries of `container` to `out`, atomically. `progress` gets (block reads
+/// done, block reads): a pass over the triangle blocks for the vertices, then one for the
+/// faces, or with two parts or more one per [`ExportOptions::faces_per_pass`] faces.
 pub fn write_ply(
     container: &Path,
     out: &Path,
@@ -41,6 +47,10 @@ pub fn write_ply(
         normals: schema.vertex_normals,
         colours: schema.vertex_colours,
         material_index: schema.triangle_materials,
+        parts: (0u32..)
+            .zip(&meta.parts)
+            .map(|(id, p)| part_table::format_entry(id, p.parent, &p.name))
+            .collect(),
         origin: meta.scene.origin,
     };
     let reserved = header.text(u64::MAX, u64::MAX, 0).len() + PAD_MIN;
@@ -48,7 +58,14 @@ pub fn write_ply(
     let blank = header.text(0, 0, reserved);
     file.write_all(blank.as_bytes())
         .map_err(|e| file.error(e))?;
-    let total = 2 * c.blocks.len() as u64;
+    let blocks = c.blocks.len() as u64;
+    let grouped = meta.parts.len() > 1;
+    let face_passes = if grouped {
+        PartOrder::new(meta).passes(opts.faces_per_pass)
+    } else {
+        1
+    };
+    let total = blocks * (1 + face_passes);
     let mut sink = PlySink {
         out: file,
         placement,
@@ -63,14 +80,18 @@ pub fn write_ply(
         });
     }
     sink.faces = true;
-    let faces = c.walk(&mut sink, progress, total / 2, total)?;
-    if faces != vertices {
-        return Err(ExportError::Changed { file: c.name() });
+    if grouped {
+        walk_in_part_order(&c, &mut sink, opts.faces_per_pass, progress, blocks, total)?;
+    } else {
+        let faces = c.walk(&mut sink, progress, blocks, total)?;
+        if faces != vertices {
+            return Err(ExportError::Changed { file: c.name() });
+        }
     }
     let Walked {
         triangles,
         vertices,
-    } = faces;
+    } = vertices;
     let PlySink {
         mut out, placement, ..
     } = sink;
@@ -78,8 +99,9 @@ pub fn write_ply(
     let mut report = ExportReport {
         triangles,
         vertices,
-        triangle_blocks: total / 2,
+        triangle_blocks: blocks,
         materials: names.len(),
+        parts: header.parts.len(),
         ..ExportReport::default()
     };
     placement.report(&mut report);
@@ -97,6 +119,8 @@ struct Header {
     normals: bool,
     colours: bool,
     material_index: bool,
+    /// The part table's lines, `ID PARENT NAME`; empty without parts.
+    parts: Vec<String>,
     origin: [f64; 3],
 }
 
@@ -118,6 +142,9 @@ impl Header {
         for (i, m) in self.materials.iter().enumerate() {
             h += &format!("comment material {i} {m}\n");
         }
+        for p in &self.parts {
+            h += &format!("comment {} {p}\n", part_table::PART);
+        }
         let mut tail = format!("element vertex {vertices}\n");
         let ty = if self.double { "double" } else { "float" };
         for c in ["x", "y", "z"] {
@@ -132,6 +159,9 @@ impl Header {
         tail += &format!("element face {faces}\nproperty list uchar uint vertex_indices\n");
         if self.material_index {
             tail += "property ushort material_index\n";
+        }
+        if !self.parts.is_empty() {
+            tail += "property int part\n";
         }
         tail += "end_header\n";
         let pad = len.saturating_sub(h.len() + tail.len());
@@ -187,11 +217,16 @@ impl PrimarySink for PlySink<'_> {
         Ok(self.put(&rec)?)
     }
 
-    fn triangle(&mut self, corners: [u64; 3], material: Option<u16>) -> Result<(), ExportError> {
+    fn triangle(&mut self, face: Face, _rank: u64) -> Result<(), ExportError> {
         if !self.faces {
             return Ok(());
         }
-        let mut rec = Vec::with_capacity(15);
+        let Face {
+            corners,
+            material,
+            part,
+        } = face;
+        let mut rec = Vec::with_capacity(19);
         rec.push(3u8);
         for i in corners {
             // Checked after the vertex pass: every index fits.
@@ -199,6 +234,11 @@ impl PrimarySink for PlySink<'_> {
         }
         if self.header.material_index {
             rec.extend_from_slice(&material.unwrap_or(0).to_le_bytes());
+        }
+        if !self.header.parts.is_empty() {
+            // Part ids are below 2^24 (spec §12): every one fits an int.
+            let id = i32::try_from(part.unwrap_or(0)).unwrap_or(i32::MAX);
+            rec.extend_from_slice(&id.to_le_bytes());
         }
         Ok(self.put(&rec)?)
     }

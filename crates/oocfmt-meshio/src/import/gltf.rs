@@ -16,6 +16,7 @@
 mod accessor;
 mod buffers;
 mod glb;
+mod parts;
 mod primitive;
 mod scene;
 mod transform;
@@ -87,7 +88,7 @@ fn io_error(path: &Path, source: std::io::Error) -> ImportError {
 }
 
 /// Imports the default scene (or every scene) of a `.gltf` or `.glb` file: each mesh placed
-/// by a node, in world space.
+/// by a node, in world space, in a part of its node (`gltf/parts.rs` says how the tree is made).
 pub fn import(
     path: &Path,
     sink: &mut dyn TriangleSink,
@@ -105,12 +106,13 @@ pub fn import(
         quantization: check_extensions(&root, &file, sink)?,
         max_bytes: opts.max_buffer_bytes,
     };
-    let instances = scene::instances(&root, &file, opts.all_scenes, sink)?;
-    warn_unplaced_meshes(&root, &instances, &file, sink);
+    let placed = scene::instances(&root, &file, opts.all_scenes, sink)?;
+    let instances = &placed.instances;
+    warn_unplaced_meshes(&root, instances, &file, sink);
 
     // Check every primitive the instances draw before reading any buffer.
     let mut plans: BTreeMap<usize, Vec<Plan>> = BTreeMap::new();
-    for inst in &instances {
+    for inst in instances {
         if plans.contains_key(&inst.mesh) {
             continue;
         }
@@ -150,8 +152,9 @@ pub fn import(
         }
     }
 
+    let parts = parts::declare(&root, &placed, &file, sink)?;
     let mut materials: BTreeMap<usize, u32> = BTreeMap::new();
-    for inst in &instances {
+    for (inst, &part) in instances.iter().zip(&parts) {
         let Some(prims) = plans.get(&inst.mesh) else {
             continue;
         };
@@ -164,7 +167,7 @@ pub fn import(
                 Some(m) => Some(material_index(&root, m, &mut materials, sink)?),
                 None => None,
             };
-            primitive::emit(d, r, inst, p, material, &file, sink)?;
+            primitive::emit(d, r, inst, p, (material, part), &file, sink)?;
         }
     }
     Ok(())

@@ -5,7 +5,9 @@
 pub mod gltf;
 pub mod obj;
 pub mod placement;
+pub mod ply;
 mod sink;
+pub mod stl;
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -259,6 +261,18 @@ pub enum ImportError {
         /// How many triangles were dropped.
         dropped: u64,
     },
+}
+
+/// Opens `path` for a streaming importer: its name as displayed, and a 64 KiB buffered reader.
+pub(crate) fn open_buffered(
+    path: &std::path::Path,
+) -> Result<(String, std::io::BufReader<std::fs::File>), ImportError> {
+    let name = path.display().to_string();
+    let file = std::fs::File::open(path).map_err(|source| ImportError::Io {
+        path: name.clone(),
+        source,
+    })?;
+    Ok((name, std::io::BufReader::with_capacity(1 << 16, file)))
 }
 
 /// Receives an importer's output.

@@ -14,12 +14,29 @@
 //! Positions are read as f64 and stored through [`TriangleSink::place`], which subtracts the
 //! scene origin before rounding to f32 (see the parser's `coordinate` for why that is still
 //! bit-exact without an origin).
+//!
+//! Objects and groups become parts: `o NAME` a top-level part, `g NAME…` a part under the
+//! current object (the names of `g a b` joined by a space, `g` alone `default`), a name met
+//! again under the same parent continuing its part (`obj/parts.rs`). A file `oocfmt export`
+//! wrote carries its exact part table in comments instead, which then decides:
+//!
+//! ```text
+//! # oocfmt parts 3            the table follows: 3 parts
+//! # part 0 -1 engine          part 0, top level (parent -1), named "engine"
+//! # part 1 0 turbine blade    part 1 under part 0
+//! # part 2 0 50%25 scale      `%`, `\`, control characters and surrounding whitespace
+//! …                           are written %XX (per UTF-8 byte), so any name fits a line
+//! # part 1                    the faces below belong to part 1
+//! g engine/turbine blade      (for other readers; ignored once a table was read)
+//! ```
 
 mod lines;
 mod materials;
 mod mtl;
 mod notes;
-mod polygon;
+pub(crate) mod part_table;
+mod parts;
+pub(in crate::import) mod polygon;
 
 use std::fs::File;
 use std::io::BufReader;
@@ -30,6 +47,7 @@ use std::str::SplitWhitespace;
 use lines::{LineError, LineFailure, Lines};
 use materials::Materials;
 use notes::{Kind, Notes};
+use parts::Parts;
 use polygon::{Outcome, Triangulator};
 
 use super::{DropReason, ImportError, InputTriangle, Location, Skipped, TriangleSink};
@@ -78,11 +96,19 @@ pub fn import(
     let mut lines = Lines::new(BufReader::with_capacity(1 << 16, file), opts.max_line_bytes);
     let mut obj = Obj::new(name, dir, opts);
     obj.positions_only = sink.positions_only();
-    while let Some((n, text)) = lines.next_line().map_err(|f| obj.line_error(f))? {
-        obj.statement(n, text, sink)?;
+    loop {
+        let line = lines.next_with_comment().map_err(|f| obj.line_error(f))?;
+        let Some((n, text, comment)) = line else {
+            break;
+        };
+        if text.is_empty() && !comment.is_empty() && !obj.positions_only {
+            obj.at.line = Some(n);
+            obj.parts.comment(comment, &obj.at, sink)?;
+        } else {
+            obj.statement(n, text, sink)?;
+        }
     }
-    obj.finish(sink);
-    Ok(())
+    obj.finish(sink)
 }
 
 /// One corner of a face: its vertex, and its normal if it names one.
@@ -104,6 +130,7 @@ struct Obj<'o> {
     polygon: Vec<[f32; 3]>,
     triangulator: Triangulator,
     materials: Materials,
+    parts: Parts,
     notes: Notes,
     lines: u64,
     points: u64,
@@ -123,6 +150,7 @@ impl<'o> Obj<'o> {
             polygon: Vec::new(),
             triangulator: Triangulator::default(),
             materials: Materials::new(dir),
+            parts: Parts::default(),
             notes: Notes::default(),
             lines: 0,
             points: 0,
@@ -188,12 +216,20 @@ impl<'o> Obj<'o> {
                     .load(args, &self.at, self.opts, sink, &mut self.notes);
                 Ok(())
             }
-            // Texture coordinates, names, smoothing and display attributes do not reach the
+            "o" => {
+                self.parts.object(mtl::rest_after(text, keyword));
+                Ok(())
+            }
+            "g" => {
+                self.parts.group(mtl::rest_after(text, keyword));
+                Ok(())
+            }
+            // Texture coordinates, smoothing and display attributes do not reach the
             // container; `vp` and the free-form settings only matter to the free-form
             // statements, which are warned about.
-            "vt" | "vp" | "g" | "o" | "s" | "mg" | "bevel" | "c_interp" | "d_interp" | "lod"
-            | "usemap" | "maplib" | "shadow_obj" | "trace_obj" | "ctech" | "stech" | "cstype"
-            | "deg" | "bmat" | "step" => Ok(()),
+            "vt" | "vp" | "s" | "mg" | "bevel" | "c_interp" | "d_interp" | "lod" | "usemap"
+            | "maplib" | "shadow_obj" | "trace_obj" | "ctech" | "stech" | "cstype" | "deg"
+            | "bmat" | "step" => Ok(()),
             other => {
                 self.notes.unsupported(other, n);
                 Ok(())
@@ -379,6 +415,7 @@ impl<'o> Obj<'o> {
         let material = self
             .materials
             .current(sink, &mut self.notes, &self.at.file)?;
+        let part = self.parts.current(&self.at, sink)?;
         for t in self.triangulator.triangles() {
             let corners = t.map(|i| self.corners[i]);
             let normals = match corners.map(|c| c.normal.and_then(|n| self.normals.get(n))) {
@@ -395,7 +432,7 @@ impl<'o> Obj<'o> {
                 normals,
                 colours,
                 material,
-                part: None,
+                part,
                 hint: match corners.map(|c| u32::try_from(c.vertex).ok()) {
                     [Some(a), Some(b), Some(c)] => Some([a, b, c]),
                     _ => None,
@@ -406,7 +443,7 @@ impl<'o> Obj<'o> {
         Ok(())
     }
 
-    fn finish(&mut self, sink: &mut dyn TriangleSink) {
+    fn finish(&mut self, sink: &mut dyn TriangleSink) -> Result<(), ImportError> {
         if self.lines > 0 {
             sink.skip(Skipped::Lines, self.lines);
         }
@@ -414,6 +451,7 @@ impl<'o> Obj<'o> {
             sink.skip(Skipped::Points, self.points);
         }
         self.notes.finish(sink, &self.at.file);
+        self.parts.finish(&Location::file(self.at.file.clone()))
     }
 }
 

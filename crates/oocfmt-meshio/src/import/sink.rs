@@ -209,13 +209,13 @@ impl<S> Intake<S> {
     }
 
     fn drop_or_fail(&mut self, reason: DropReason, at: &Location) -> Result<(), ImportError> {
-        self.report.triangles_in += 1;
         if self.strict {
             return Err(ImportError::Strict {
                 at: at.clone(),
                 reason,
             });
         }
+        self.report.triangles_in += 1;
         *self.report.dropped.entry(reason).or_default() += 1;
         Ok(())
     }

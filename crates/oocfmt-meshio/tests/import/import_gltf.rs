@@ -16,6 +16,8 @@ use oocfmt_meshio::import::{
 use oocfmt_meshio::mesh::Mesh;
 use serde_json::{json, Value};
 
+use crate::import_obj::{node, part_tree};
+
 const BYTE: u32 = 5120;
 const UBYTE: u32 = 5121;
 const SHORT: u32 = 5122;
@@ -829,6 +831,153 @@ impl TriangleSink for Recording {
     fn place(&mut self, exact: [f64; 3]) -> [f32; 3] {
         exact.map(|c| c as f32)
     }
+}
+
+// ---------------------------------------------------------------------------------------
+// Parts
+
+/// Three meshes (x = 0, 10, 20) and the given scenes and nodes.
+fn parts_doc(rest: Value) -> (Value, Vec<u8>) {
+    let mut b = Builder::default();
+    let p: Vec<usize> = [0.0, 10.0, 20.0]
+        .iter()
+        .map(|&dx| b.positions(&TRI.map(|v| [v[0] + dx, v[1], v[2]])))
+        .collect();
+    let mut doc = json!({
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": p[0]}}]},
+            {"name": "Bolt", "primitives": [{"attributes": {"POSITION": p[1]}}]},
+            {"primitives": [{"attributes": {"POSITION": p[2]}}]},
+        ],
+    });
+    for (k, v) in rest.as_object().unwrap() {
+        doc[k] = v.clone();
+    }
+    b.finish(doc)
+}
+
+#[test]
+fn mesh_nodes_and_their_ancestors_become_the_part_tree() {
+    let (doc, bin) = parts_doc(json!({
+        "scenes": [{"nodes": [0, 5]}],
+        "nodes": [
+            {"name": "assembly", "children": [1, 2, 4]},
+            {"name": "wheel", "mesh": 0},
+            {"mesh": 1, "children": [3]},
+            {"mesh": 2},
+            {"name": "camera"},
+            {"name": "", "children": [6]},
+            {"mesh": 0, "translation": [0.0, 0.0, 5.0]},
+        ],
+    }));
+    let (mesh, _) = gltf_ok(&doc, &bin);
+    assert_eq!(
+        part_tree(&mesh),
+        [
+            node("assembly", None, 0),
+            node("wheel", Some(0), 1),
+            // No node name: the mesh's; neither: the node's index.
+            node("Bolt", Some(0), 1),
+            node("node 3", Some(2), 1),
+            // An empty name is no name; the camera branch holds no mesh and is no part.
+            node("node 5", None, 0),
+            node("node 6", Some(4), 1),
+        ]
+    );
+    let xs: Vec<f32> = triangles(&mesh).iter().map(|t| t[0][0]).collect();
+    assert_eq!(xs, [0.0, 10.0, 20.0, 0.0]);
+    assert_eq!(mesh.part_ids.as_deref(), Some(&[1, 2, 3, 5][..]));
+}
+
+#[test]
+fn a_mesh_placed_by_two_nodes_is_two_parts() {
+    let (doc, bin) = parts_doc(json!({
+        "scenes": [{"nodes": [0]}],
+        "nodes": [
+            {"children": [1, 2]},
+            {"mesh": 1},
+            {"mesh": 1, "translation": [0.0, 0.0, 5.0]},
+        ],
+    }));
+    let (mesh, _) = gltf_ok(&doc, &bin);
+    assert_eq!(
+        part_tree(&mesh),
+        [
+            node("node 0", None, 0),
+            node("Bolt", Some(0), 1),
+            node("Bolt", Some(0), 1),
+        ]
+    );
+}
+
+#[test]
+fn a_node_in_two_imported_scenes_has_parts_under_each() {
+    let (doc, bin) = parts_doc(json!({
+        "scenes": [{"name": "day", "nodes": [0]}, {"nodes": [0, 2]}],
+        "nodes": [{"name": "frame", "children": [1]}, {"mesh": 0}, {"mesh": 2}],
+    }));
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_gltf(dir.path(), &doc, &bin);
+    let all = GltfOptions {
+        all_scenes: true,
+        ..GltfOptions::default()
+    };
+    let (mesh, _) = run_with(&path, &all).unwrap();
+    assert_eq!(
+        part_tree(&mesh),
+        [
+            node("day", None, 0),
+            node("frame", Some(0), 0),
+            node("node 1", Some(1), 1),
+            node("scene 1", None, 0),
+            node("frame", Some(3), 0),
+            node("node 1", Some(4), 1),
+            node("node 2", Some(3), 1),
+        ]
+    );
+    // The default scene alone: no scene parts.
+    let (mesh, _) = run(&path).unwrap();
+    assert_eq!(
+        part_tree(&mesh),
+        [node("frame", None, 0), node("node 1", Some(0), 1)]
+    );
+}
+
+#[test]
+fn one_anonymous_mesh_instance_declares_no_part() {
+    // Nested under anonymous nodes, still nothing to name.
+    let (doc, bin) = parts_doc(json!({
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"children": [1]}, {"mesh": 2}],
+    }));
+    let (mesh, _) = gltf_ok(&doc, &bin);
+    assert!(mesh.parts.is_empty() && mesh.part_ids.is_none());
+    let (doc, bin) = triangle_doc();
+    let (mesh, _) = gltf_ok(&doc, &bin);
+    assert!(mesh.parts.is_empty());
+    // A name anywhere on the way keeps its part, even alone.
+    for named in [
+        json!({"scenes": [{"nodes": [0]}], "nodes": [{"name": "a", "children": [1]}, {"mesh": 2}]}),
+        json!({"scenes": [{"nodes": [0]}], "nodes": [{"mesh": 1}]}),
+    ] {
+        let (doc, bin) = parts_doc(named);
+        let (mesh, _) = gltf_ok(&doc, &bin);
+        assert!(!mesh.parts.is_empty());
+        assert!(mesh.part_ids.is_none() || mesh.parts.len() > 1);
+    }
+    // The importer tells the sink the part of every triangle it declared parts for.
+    let (doc, bin) = parts_doc(json!({
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"mesh": 2}],
+    }));
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_gltf(dir.path(), &doc, &bin);
+    let mut r = Recording::default();
+    import(&path, &mut r, &GltfOptions::default()).unwrap();
+    let names: Vec<&str> = r.parts.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(names, ["node 0", "node 1"]);
+    let parts: Vec<Option<u32>> = r.triangles.iter().map(|t| t.part).collect();
+    assert_eq!(parts, [Some(0), Some(1)]);
 }
 
 // ---------------------------------------------------------------------------------------

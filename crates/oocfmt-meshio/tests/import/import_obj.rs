@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 use oocfmt::metadata::Material;
 use oocfmt_meshio::import::obj::{import, ObjOptions};
 use oocfmt_meshio::import::{
-    DropReason, ImportError, ImportReport, InputTriangle, Location, MeshSink, Skipped, TriangleSink,
+    DropReason, ImportError, ImportReport, InputTriangle, Location, MeshSink, Skipped,
+    TriangleSink, UNNAMED_PART,
 };
 use oocfmt_meshio::mesh::Mesh;
 use tempfile::TempDir;
@@ -733,6 +734,160 @@ fn malformed_kd_is_a_warning_with_the_mtl_line_where_tobj_panics() {
         tobj::load_obj(&p, &tobj::LoadOptions::default()).map(|(m, _)| m.len())
     });
     assert!(tobj_result.is_err(), "tobj no longer panics on `Kd 1 2`");
+}
+
+// ------------------------------------------------------------------ parts
+
+/// The part tree as (name, parent, triangles of its own), parents before children.
+pub(crate) fn part_tree(mesh: &Mesh) -> Vec<(String, Option<u32>, usize)> {
+    let count = |i: usize| match &mesh.part_ids {
+        Some(ids) => ids.iter().filter(|&&p| p as usize == i).count(),
+        None => mesh.triangles.len(),
+    };
+    mesh.parts
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (p.name.clone(), p.parent, count(i)))
+        .collect()
+}
+
+pub(crate) fn node(
+    name: &str,
+    parent: Option<u32>,
+    triangles: usize,
+) -> (String, Option<u32>, usize) {
+    (name.to_string(), parent, triangles)
+}
+
+#[test]
+fn objects_are_top_level_parts_and_groups_are_parts_under_them() {
+    let (_d, p) = obj(&format!(
+        "{QUAD}o engine\nf 1 2 3\ng fan blade\nf 1 2 3 4\ng\nf 1 2 3\n\
+         o frame\ng bolt\nf 1 2 3\ng\tfan   blade \nf 1 3 4\n"
+    ));
+    let (mesh, _) = load(&p).unwrap();
+    assert_eq!(
+        part_tree(&mesh),
+        [
+            node("engine", None, 1),
+            node("fan blade", Some(0), 2),
+            node("default", Some(0), 1),
+            node("frame", None, 0),
+            node("bolt", Some(3), 1),
+            // The same names under another object are another part.
+            node("fan blade", Some(3), 1),
+        ]
+    );
+}
+
+#[test]
+fn a_reopened_object_or_group_continues_its_part() {
+    let (_d, p) = obj(&format!(
+        "{QUAD}g a\nf 1 2 3\ng b\nf 1 2 3\ng a\nf 1 2 3 4\n\
+         o x\ng a\nf 1 2 3\no y\nf 1 2 3\no x\nf 1 3 4\ng a\nf 1 2 3\n"
+    ));
+    let (mesh, _) = load(&p).unwrap();
+    assert_eq!(
+        part_tree(&mesh),
+        [
+            node("a", None, 3),
+            node("b", None, 1),
+            node("x", None, 1),
+            node("a", Some(2), 2),
+            node("y", None, 1),
+        ]
+    );
+    // The part ids follow the faces in file order.
+    assert_eq!(
+        mesh.part_ids.as_deref(),
+        Some(&[0, 1, 0, 0, 3, 4, 2, 3][..])
+    );
+}
+
+#[test]
+fn faces_before_any_object_or_group_get_the_unnamed_part() {
+    let (_d, p) = obj(&format!("{QUAD}f 1 2 3\no lid\nf 1 3 4\n"));
+    let (mesh, _) = load(&p).unwrap();
+    assert_eq!(
+        part_tree(&mesh),
+        [node("lid", None, 1), node(UNNAMED_PART, None, 1)]
+    );
+    assert_eq!(mesh.part_ids.as_deref(), Some(&[1, 0][..]));
+}
+
+#[test]
+fn a_file_without_faces_in_objects_or_groups_declares_no_part() {
+    // An object left empty names no face.
+    for text in [
+        format!("{QUAD}f 1 2 3 4\n"),
+        format!("{QUAD}f 1 2 3 4\no empty\ng\n"),
+    ] {
+        let (_d, p) = obj(&text);
+        let (mesh, _) = load(&p).unwrap();
+        assert!(mesh.parts.is_empty() && mesh.part_ids.is_none());
+        let r = record(&p);
+        assert!(r.parts.is_empty());
+        assert!(r.triangles.iter().all(|(t, _)| t.part.is_none()));
+    }
+    // One named part keeps its name but needs no ids; Maya's `g default` above the
+    // vertices is no part.
+    let (_d, p) = obj(&format!("g default\n{QUAD}o cube\nf 1 2 3 4\n"));
+    let (mesh, _) = load(&p).unwrap();
+    assert_eq!(part_tree(&mesh), [node("cube", None, 2)]);
+    assert!(mesh.part_ids.is_none());
+}
+
+#[test]
+fn the_part_table_in_comments_gives_the_exact_tree() {
+    // Two siblings of one name stay two parts; `o`/`g` are ignored once the table is read;
+    // an ordinary comment starting with "part" is nothing.
+    let (_d, p) = obj(&format!(
+        "# oocfmt parts 5\n# part 0 -1 plane\n# part 1 0 wing\n# part 2 1 bolt\n\
+         # part 3 1 bolt\n# part 4 -1 %2050%25 \\%5C\n# part of the wing follows\n{QUAD}\
+         # part 2\no ignored\ng plane/wing/bolt\nf 1 2 3\n# part 3\nf 1 2 3 4\n\
+         # part 4\nf 1 3 4\n"
+    ));
+    let (mesh, _) = load(&p).unwrap();
+    assert_eq!(
+        part_tree(&mesh),
+        [
+            node("plane", None, 0),
+            node("wing", Some(0), 0),
+            node("bolt", Some(1), 1),
+            node("bolt", Some(1), 2),
+            node(" 50% \\\\", None, 1),
+        ]
+    );
+}
+
+#[test]
+fn a_broken_part_table_is_an_error_naming_the_line() {
+    let table = "# oocfmt parts 2\n# part 0 -1 a\n";
+    for (text, line, what) in [
+        (format!("{table}# part 2 0 b\n"), 3, "out of order"),
+        (format!("{table}# part 1 1 b\n"), 3, "not listed before it"),
+        (
+            format!("{table}# part 1 0 b\n# part 2 0 c\n"),
+            4,
+            "out of order",
+        ),
+        (format!("{table}# part 1\n"), 3, "has not listed"),
+        (
+            format!("{table}# part 1 0 b\n# oocfmt parts 1\n"),
+            4,
+            "second part table",
+        ),
+        ("# oocfmt parts lots\n".to_string(), 1, "part count"),
+        ("# oocfmt parts 16777217\n".to_string(), 1, "part count"),
+    ] {
+        let (_d, p) = obj(&format!("{text}{QUAD}f 1 2 3\n"));
+        let msg = error_text(load(&p));
+        assert!(msg.contains(&format!("m.obj:{line}: ")), "{msg}");
+        assert!(msg.contains(what), "{what}: {msg}");
+    }
+    let (_d, p) = obj(&format!("{table}{QUAD}f 1 2 3\n"));
+    let msg = error_text(load(&p));
+    assert!(msg.contains("announces 2 parts but lists 1"), "{msg}");
 }
 
 // ------------------------------------------------------------ text format

@@ -275,13 +275,14 @@ impl Readers<'_> {
     }
 }
 
-/// Pushes the triangles of one primitive placed by one node.
+/// Pushes the triangles of one primitive placed by one node, with the sink's indices of their
+/// material and part.
 pub(super) fn emit(
     draw: &Draw,
     r: &Readers<'_>,
     instance: &Instance,
     prim: usize,
-    material: Option<u32>,
+    (material, part): (Option<u32>, Option<u32>),
     file: &str,
     sink: &mut dyn TriangleSink,
 ) -> Result<(), ImportError> {
@@ -326,7 +327,7 @@ pub(super) fn emit(
             normals: r.corner_normals(&v, normal_matrix),
             colours: r.corner_colours(&v),
             material,
-            part: None,
+            part,
             hint: None,
         };
         if mirrored {

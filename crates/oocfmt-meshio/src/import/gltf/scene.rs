@@ -15,9 +15,21 @@ pub(super) const MAX_DEPTH: usize = 1024;
 /// A mesh placed by a node.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Instance {
+    /// The index, among the scenes imported, of the scene it was reached from.
+    pub scene: usize,
     pub node: usize,
     pub mesh: usize,
     pub world: Affine,
+}
+
+/// The instances of the imported scenes, and what is needed to name their parts.
+pub(super) struct Placed {
+    pub instances: Vec<Instance>,
+    /// Each node's parent (the nodes form a forest).
+    pub parents: Vec<Option<usize>>,
+    /// The glTF index of each imported scene (`None`: the file has no scene and its root
+    /// nodes stand for one).
+    pub scenes: Vec<Option<usize>>,
 }
 
 fn node_error(file: &str, node: usize, message: impl Into<String>) -> ImportError {
@@ -119,6 +131,10 @@ fn local(node: &json::Node) -> Result<Affine, String> {
     }
 }
 
+/// A scene to import: its glTF index (`None`: the file has none and its root nodes stand for
+/// one) and its root nodes.
+type Roots = (Option<usize>, Vec<usize>);
+
 /// The scenes to import: all, or the default one (scene 0 when none is marked). A file
 /// without scenes gets one made of its root nodes.
 fn selected_scenes(
@@ -127,7 +143,7 @@ fn selected_scenes(
     file: &str,
     all_scenes: bool,
     sink: &mut dyn TriangleSink,
-) -> Result<Vec<Vec<usize>>, ImportError> {
+) -> Result<Vec<Roots>, ImportError> {
     let at = Location::file(file);
     if root.scenes.is_empty() {
         if !root.nodes.is_empty() {
@@ -136,15 +152,20 @@ fn selected_scenes(
                 "the file has no scene: importing every root node".into(),
             );
         }
-        return Ok(vec![(0..parent.len())
-            .filter(|&i| parent.get(i).is_some_and(Option::is_none))
-            .collect()]);
+        return Ok(vec![(
+            None,
+            (0..parent.len())
+                .filter(|&i| parent.get(i).is_some_and(Option::is_none))
+                .collect(),
+        )]);
     }
-    let scene_nodes = |s: usize| -> Vec<usize> {
-        root.scenes
+    let scene_nodes = |s: usize| -> Roots {
+        let nodes = root
+            .scenes
             .get(s)
             .map(|sc| sc.nodes.iter().map(|n| n.value()).collect())
-            .unwrap_or_default()
+            .unwrap_or_default();
+        (Some(s), nodes)
     };
     if all_scenes {
         return Ok((0..root.scenes.len()).map(scene_nodes).collect());
@@ -179,13 +200,14 @@ pub(super) fn instances(
     file: &str,
     all_scenes: bool,
     sink: &mut dyn TriangleSink,
-) -> Result<Vec<Instance>, ImportError> {
+) -> Result<Placed, ImportError> {
     let parent = parents(root, file)?;
     let scenes = selected_scenes(root, &parent, file, all_scenes, sink)?;
     let mut out = Vec::new();
     let mut matrix_and_trs = BTreeSet::new();
     let mut skinned = BTreeSet::new();
-    for (s, roots) in scenes.iter().enumerate() {
+    for (imported, (index, roots)) in scenes.iter().enumerate() {
+        let s = index.unwrap_or(imported);
         let mut seen = BTreeSet::new();
         for &r in roots {
             let scene_error = |message: String| ImportError::Parse {
@@ -226,6 +248,7 @@ pub(super) fn instances(
                         skinned.insert(x);
                     }
                     out.push(Instance {
+                        scene: imported,
                         node: x,
                         mesh,
                         world,
@@ -257,5 +280,9 @@ pub(super) fn instances(
             ),
         );
     }
-    Ok(out)
+    Ok(Placed {
+        instances: out,
+        parents: parent,
+        scenes: scenes.into_iter().map(|(index, _)| index).collect(),
+    })
 }

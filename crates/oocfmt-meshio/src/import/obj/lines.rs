@@ -38,6 +38,13 @@ impl<R: BufRead> Lines<R> {
     /// its first physical line; `None` at the end of the input. Bytes that are not UTF-8 are
     /// replaced rather than refused: they can only matter inside names.
     pub(super) fn next_line(&mut self) -> Result<Option<(u64, &str)>, LineFailure> {
+        Ok(self.next_with_comment()?.map(|(n, text, _)| (n, text)))
+    }
+
+    /// [`Lines::next_line`], and the comment cut off it: from its `#` to the end of the line,
+    /// untrimmed (empty when the line has none). The part table `oocfmt export` writes lives
+    /// in comments.
+    pub(super) fn next_with_comment(&mut self) -> Result<Option<(u64, &str, &str)>, LineFailure> {
         self.buf.clear();
         let first = self.read + 1;
         let mut any = false;
@@ -77,31 +84,28 @@ impl<R: BufRead> Lines<R> {
         if !any {
             return Ok(None);
         }
-        strip_comment(&mut self.buf);
-        // ASCII (nearly every line) is checked several times faster than UTF-8.
+        // ASCII (nearly every line) is checked several times faster than UTF-8. Replacing
+        // bytes never touches an ASCII `#`, so the comment is found after.
         if !self.buf.is_ascii() && std::str::from_utf8(&self.buf).is_err() {
             self.buf = String::from_utf8_lossy(&self.buf).into_owned().into_bytes();
         }
-        let text = std::str::from_utf8(&self.buf).unwrap_or_default();
-        Ok(Some((first, text.trim())))
+        let line = std::str::from_utf8(&self.buf).unwrap_or_default();
+        let (text, comment) = line.split_at(comment_start(line.as_bytes()));
+        Ok(Some((first, text.trim(), comment)))
     }
 }
 
-/// Cuts the line at a `#` that starts a word, so `v 1 2 3 # note` works but a material named
-/// `steel#2` keeps its name.
-fn strip_comment(line: &mut Vec<u8>) {
+/// Where the comment starts: at a `#` that starts a word, so `v 1 2 3 # note` works but a
+/// material named `steel#2` keeps its name; the line's length when it has none.
+fn comment_start(line: &[u8]) -> usize {
     // Most lines have no `#`: one memchr pass finds that.
     if !line.contains(&b'#') {
-        return;
+        return line.len();
     }
-    let cut = line
-        .iter()
+    line.iter()
         .enumerate()
         .find(|&(i, &b)| b == b'#' && (i == 0 || line[i - 1].is_ascii_whitespace()))
-        .map(|(i, _)| i);
-    if let Some(i) = cut {
-        line.truncate(i);
-    }
+        .map_or(line.len(), |(i, _)| i)
 }
 
 #[cfg(test)]
@@ -148,6 +152,24 @@ mod tests {
         assert_eq!(all(b"ok\nabcdefghijklmnop", 4)[1], Err((2, true)));
         // A continuation counts towards the cap of its logical line.
         assert_eq!(all(b"ab\\\ncd\\\nef\n", 4), vec![Err((2, true))]);
+    }
+
+    #[test]
+    fn the_comment_comes_back_as_written() {
+        let mut lines = Lines::new(&b"v 1 2 3 # note  \n# part 0 -1 a #b \\\nsteel#2\n"[..], 64);
+        let mut got = Vec::new();
+        while let Ok(Some((n, text, comment))) = lines.next_with_comment() {
+            got.push((n, text.to_string(), comment.to_string()));
+        }
+        let line = |n, t: &str, c: &str| (n, t.to_string(), c.to_string());
+        assert_eq!(
+            got,
+            [
+                line(1, "v 1 2 3", "# note  "),
+                // A continuation joins the next line into the comment.
+                line(2, "", "# part 0 -1 a #b  steel#2"),
+            ]
+        );
     }
 
     #[test]

@@ -13,7 +13,7 @@
 
 /// How a polygon was triangulated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Outcome {
+pub(in crate::import) enum Outcome {
     /// Ear clipping succeeded (or the polygon was a triangle).
     Clipped,
     /// No usable plane: non-finite or coincident/collinear corners. Fanned; every triangle
@@ -26,7 +26,7 @@ pub(super) enum Outcome {
 
 /// Reusable buffers, so faces cost no allocation once the largest has been seen.
 #[derive(Default)]
-pub(super) struct Triangulator {
+pub(in crate::import) struct Triangulator {
     pts: Vec<[f64; 2]>,
     prev: Vec<usize>,
     next: Vec<usize>,
@@ -36,12 +36,12 @@ pub(super) struct Triangulator {
 
 impl Triangulator {
     /// The triangles of the last call, as corner indices into the polygon given.
-    pub(super) fn triangles(&self) -> &[[usize; 3]] {
+    pub(in crate::import) fn triangles(&self) -> &[[usize; 3]] {
         &self.out
     }
 
     /// Triangulates `poly` (at least 3 corners) into `poly.len() - 2` triangles.
-    pub(super) fn triangulate(&mut self, poly: &[[f32; 3]]) -> Outcome {
+    pub(in crate::import) fn triangulate(&mut self, poly: &[[f32; 3]]) -> Outcome {
         self.out.clear();
         let n = poly.len();
         if n < 3 {

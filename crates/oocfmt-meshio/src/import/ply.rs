@@ -1,0 +1,249 @@
+//! The PLY importer: `ascii`, `binary_little_endian` and `binary_big_endian`, elements in any
+//! order, properties of any scalar type (`char` … `double` and the `int8` … `float64` names).
+//!
+//! - **Vertices** (`vertex`): `x`, `y`, `z`, optionally `nx`, `ny`, `nz` and `red`, `green`,
+//!   `blue` with optional `alpha` (or their `diffuse_` names). Colours of an integer type are
+//!   0..255, of a float type 0..1; either is clamped.
+//! - **Faces** (`face`): the list `vertex_indices` (or `vertex_index`), any count and index
+//!   type, triangulated like OBJ polygons (ear clipping, the same degenerate handling); faces
+//!   of one or two corners are counted as points and lines, an index out of range rejects
+//!   the face's triangles. `tristrips` with `-1` restarts are read too (a strip's part and
+//!   material are the ones its record gives before the list).
+//! - **Parts**: an integer property `part` (or `part_id`) on faces. Its ids are named by
+//!   header comments `comment part <id> <parent id or -1> <name>` (as `oocfmt export` writes
+//!   them, the name escaped as in its OBJ part table; a parent must have a smaller id), else
+//!   `part <id>`. **Materials**: `material_index`
+//!   on faces, named by `comment material <index> <name> <r> <g> <b>`. A file written with
+//!   `comment positions are relative to the scene origin <x> <y> <z>` has that origin added
+//!   back. Every other element, property and comment is stepped over.
+//!
+//! It streams: only the vertex table is held (its count checked against the file's size
+//! before it is reserved), faces go to the sink as they are read. Faces stored before the
+//! vertices are read in a second pass over the file. Every element count and list length is
+//! checked against the bytes left in the file before anything is reserved or skipped for it.
+
+mod body;
+mod faces;
+mod header;
+mod scalar;
+mod vertices;
+
+use std::io::{BufRead, Seek, SeekFrom};
+use std::path::Path;
+
+use body::{Ascii, Binary, Body};
+use faces::{FacePlan, Faces};
+use header::{Encoding, Header};
+use vertices::{Table, VertexPlan};
+
+use super::stl::lines::Lines;
+use super::{ImportError, Location, TriangleSink};
+
+/// Bounds on what one file can make the importer hold or do.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PlyOptions {
+    /// Longest line of the header or of an ASCII body, in bytes.
+    pub max_line_bytes: usize,
+    /// Largest header, in bytes.
+    pub max_header_bytes: u64,
+    /// Most vertices held.
+    pub max_vertices: u64,
+    /// Most corners of one face.
+    pub max_face_corners: usize,
+}
+
+impl Default for PlyOptions {
+    fn default() -> PlyOptions {
+        PlyOptions {
+            max_line_bytes: 1 << 20,
+            max_header_bytes: 64 << 20,
+            // As for OBJ: 3 GiB of positions.
+            max_vertices: 1 << 28,
+            max_face_corners: 1 << 16,
+        }
+    }
+}
+
+/// Reads the PLY file at `path` into `sink`.
+pub fn import(
+    path: &Path,
+    sink: &mut dyn TriangleSink,
+    opts: &PlyOptions,
+) -> Result<(), ImportError> {
+    let (name, input) = super::open_buffered(path)?;
+    import_from(input, &name, sink, opts)
+}
+
+/// Reads a PLY file from `input` (at its start), reporting places in it as `name`: what
+/// [`import`] does once the file is open, for input that is not a file (the fuzz targets).
+pub fn import_from<R: BufRead + Seek>(
+    mut input: R,
+    name: &str,
+    sink: &mut dyn TriangleSink,
+    opts: &PlyOptions,
+) -> Result<(), ImportError> {
+    sink.begin_file(name);
+    let io = |source| ImportError::Io {
+        path: name.to_string(),
+        source,
+    };
+    let len = input.seek(SeekFrom::End(0)).map_err(io)?;
+    input.seek(SeekFrom::Start(0)).map_err(io)?;
+    let mut lines = Lines::new(input, opts.max_line_bytes, 0, 0);
+    let mut header = header::read(&mut lines, name, opts)?;
+    let start = lines.offset();
+    check_sizes(&header, len.saturating_sub(start), name, opts)?;
+    for (line, text) in std::mem::take(&mut header.bad_comments) {
+        sink.warn(
+            &Location::line(name, line),
+            format!("comment `{text}` looks like an oocfmt comment but does not parse; ignored"),
+        );
+    }
+    let plan = Plan::new(&header, name, sink)?;
+    match header.encoding {
+        Encoding::Ascii => {
+            let body = Ascii::new(lines, name, len, opts.max_line_bytes);
+            plan.run(body, header, name, sink, opts)
+        }
+        Encoding::Binary(big_endian) => {
+            let body = Binary::new(lines.into_inner(), name, start, len, big_endian);
+            plan.run(body, header, name, sink, opts)
+        }
+    }
+}
+
+/// Refuses counts the file cannot hold: every element's records take at least
+/// [`header::Element::min_record_bytes`] each, so the sum cannot pass the bytes after the
+/// header. The vertex count is also held to [`PlyOptions::max_vertices`].
+fn check_sizes(
+    header: &Header,
+    body_bytes: u64,
+    file: &str,
+    opts: &PlyOptions,
+) -> Result<(), ImportError> {
+    // An ASCII file's last value needs no separator.
+    let room = u128::from(body_bytes) + u128::from(header.encoding == Encoding::Ascii);
+    let mut need = 0u128;
+    for e in &header.elements {
+        let min = e.min_record_bytes(header.encoding);
+        need += u128::from(e.count) * u128::from(min);
+        if need > room {
+            return Err(ImportError::Parse {
+                at: Location::line(file, e.line),
+                message: format!(
+                    "element `{}` declares {} records of at least {min} bytes each, more than the \
+                     {body_bytes} bytes after the header hold (with the elements before it)",
+                    e.name, e.count
+                ),
+            });
+        }
+        if e.name == "vertex" && e.count > opts.max_vertices {
+            return Err(ImportError::Limit {
+                at: Location::line(file, e.line),
+                what: "vertices".into(),
+                limit: opts.max_vertices,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// What to do with each element.
+struct Plan {
+    /// The vertex element (the first one named `vertex`) and how to read it.
+    vertex: Option<(usize, VertexPlan)>,
+    /// Per element: how to read it when it holds faces.
+    faces: Vec<Option<FacePlan>>,
+}
+
+impl Plan {
+    fn new(header: &Header, file: &str, sink: &mut dyn TriangleSink) -> Result<Plan, ImportError> {
+        let mut vertex = None;
+        let mut faces = Vec::with_capacity(header.elements.len());
+        for (i, e) in header.elements.iter().enumerate() {
+            let at = Location::line(file, e.line);
+            if e.name == "vertex" {
+                if vertex.is_none() {
+                    vertex = Some((i, VertexPlan::new(e, file)?));
+                } else {
+                    sink.warn(&at, "a second `vertex` element was skipped".into());
+                }
+            }
+            faces.push(match FacePlan::new(e) {
+                Ok(plan) => plan,
+                Err(why) => {
+                    sink.warn(&at, format!("{why}: skipped"));
+                    None
+                }
+            });
+        }
+        let any_faces = faces.iter().any(Option::is_some);
+        match &vertex {
+            None if any_faces => {
+                return Err(ImportError::Parse {
+                    at: Location::file(file),
+                    message: "the file has faces but no `vertex` element".into(),
+                })
+            }
+            Some((i, _)) if !any_faces => {
+                let count = header.elements.get(*i).map_or(0, |e| e.count);
+                sink.warn(
+                    &Location::file(file),
+                    format!(
+                        "no `face` or `tristrips` element: the {count} vertices (a point cloud?) \
+                         make no triangles"
+                    ),
+                );
+            }
+            _ => {}
+        }
+        Ok(Plan { vertex, faces })
+    }
+
+    /// Reads the body: vertices and the faces after them in one pass; faces stored before the
+    /// vertices in a second.
+    fn run<B: Body>(
+        &self,
+        mut body: B,
+        header: Header,
+        file: &str,
+        sink: &mut dyn TriangleSink,
+        opts: &PlyOptions,
+    ) -> Result<(), ImportError> {
+        let origin = header.origin.unwrap_or_default();
+        let keep = !sink.positions_only();
+        let mut faces = Faces::new(file, opts.max_face_corners, header.parts, header.materials);
+        let mut table: Option<Table> = None;
+        let mut deferred = Vec::new();
+        for (i, e) in header.elements.iter().enumerate() {
+            body.enter(e);
+            if let Some((_, plan)) = self.vertex.as_ref().filter(|(v, _)| *v == i) {
+                table = Some(vertices::read(&mut body, e, plan, origin, sink, keep)?);
+                continue;
+            }
+            match (self.faces.get(i).and_then(Option::as_ref), &table) {
+                (Some(plan), Some(t)) if keep => faces.read(&mut body, e, plan, t, sink)?,
+                (Some(_), None) if keep => {
+                    deferred.push(i);
+                    body.skip_element(e)?;
+                }
+                _ => body.skip_element(e)?,
+            }
+        }
+        body.end(sink);
+        if let (Some(&last), Some(t)) = (deferred.last(), &table) {
+            body.rewind()?;
+            for (i, e) in header.elements.iter().enumerate().take(last + 1) {
+                body.enter(e);
+                match self.faces.get(i).and_then(Option::as_ref) {
+                    Some(plan) if deferred.contains(&i) => {
+                        faces.read(&mut body, e, plan, t, sink)?
+                    }
+                    _ => body.skip_element(e)?,
+                }
+            }
+        }
+        faces.finish(sink);
+        Ok(())
+    }
+}
