@@ -80,8 +80,9 @@ pub enum ConvertError {
     /// The out-of-core build, or a spill file, failed.
     #[error(transparent)]
     OutOfCore(#[from] OocError),
-    /// An input's extension is none of `.obj`, `.gltf`, `.glb`; holds the input's path.
-    #[error("{0}: unknown input format (expected .obj, .gltf or .glb)")]
+    /// An input's extension is none of `.obj`, `.gltf`, `.glb`, `.stl`, `.ply`; holds the
+    /// input's path.
+    #[error("{0}: unknown input format (expected .obj, .gltf, .glb, .stl or .ply)")]
     UnknownFormat(String),
     /// The temporary folder for spill files could not be made beside the output.
     #[error("cannot make a folder for spill files next to {path}: {source}")]
@@ -100,6 +101,10 @@ pub enum InputFormat {
     Obj,
     /// glTF 2.0, text (`.gltf`) or binary (`.glb`).
     Gltf,
+    /// STL, ASCII or binary (`.stl`).
+    Stl,
+    /// PLY, ASCII or binary (`.ply`).
+    Ply,
 }
 
 impl InputFormat {
@@ -109,6 +114,8 @@ impl InputFormat {
         match ext.as_str() {
             "obj" => Some(InputFormat::Obj),
             "gltf" | "glb" => Some(InputFormat::Gltf),
+            "stl" => Some(InputFormat::Stl),
+            "ply" => Some(InputFormat::Ply),
             _ => None,
         }
     }
@@ -226,8 +233,10 @@ fn import_soup(
     origin: [f64; 3],
     progress: &mut dyn Progress,
 ) -> Result<Soup, ConvertError> {
+    // Several files: each is a part above its own parts, so the assembly says where it came from.
     let mut sink = soup_sink(&dir.join("import.soup"), opts.strict, Some(chunk_triangles))?
-        .with_origin(origin);
+        .with_origin(origin)
+        .with_file_parts(inputs.len() > 1);
     progress.phase("import", Some(inputs.len() as u64));
     for (i, path) in inputs.iter().enumerate() {
         import_one(path, &mut sink, opts)?;
@@ -302,6 +311,9 @@ fn import_one(
     match InputFormat::of(path) {
         Some(InputFormat::Obj) => import::obj::import(path, sink, &opts.obj)?,
         Some(InputFormat::Gltf) => import::gltf::import(path, sink, &opts.gltf)?,
+        // Their options only bound what a file can make the importer hold: the defaults.
+        Some(InputFormat::Stl) => import::stl::import(path, sink, &Default::default())?,
+        Some(InputFormat::Ply) => import::ply::import(path, sink, &Default::default())?,
         None => return Err(ConvertError::UnknownFormat(path.display().to_string())),
     }
     Ok(())
@@ -322,6 +334,7 @@ fn describe(output: &Path, identity: u32) -> Result<ConvertReport, ConvertError>
         voxels_six: m.counts.voxels_six,
         lod_kinds: reader.lod_kinds().name().to_string(),
         proxies: m.counts.proxies,
+        parts: m.parts.len() as u64,
         file_bytes: reader.file_len(),
         identity: format!("{identity:08x}"),
         ..ConvertReport::default()

@@ -53,6 +53,8 @@ pub struct ConvertReport {
     pub lod_kinds: String,
     /// Proxy records over all proxy blocks.
     pub proxies: u64,
+    /// Parts in the file's part table (0: the input named none).
+    pub parts: u64,
     /// Block totals keyed by kind: `treelet`, `triangle`, `proxy`.
     pub blocks: BTreeMap<String, BlockStats>,
     /// Size of the written file in bytes.

@@ -89,3 +89,94 @@ fn a_failed_chunked_build_leaves_no_output_and_no_spill_files() {
         "{names:?}"
     );
 }
+
+/// An OBJ whose first faces are in no part, then an object and a group under it: strips of
+/// triangles along x, so the chunked build cuts through each part.
+fn parted_obj(path: &Path) {
+    let mut text = String::new();
+    let mut faces = String::new();
+    for k in 0..120 {
+        let x = k as f32 * 0.25;
+        text += &format!(
+            "v {x} 0 0\nv {} 0 0\nv {x} 1 {}\n",
+            x + 0.5,
+            (k % 7) as f32 * 0.1
+        );
+        match k {
+            40 => faces += "o bracket\n",
+            80 => faces += "g bolt\n",
+            _ => {}
+        }
+        faces += &format!("f {} {} {}\n", 3 * k + 1, 3 * k + 2, 3 * k + 3);
+    }
+    std::fs::write(path, text + &faces).unwrap();
+}
+
+/// Per triangle record of `file` (by its corners' bits), the name of its part.
+fn stored_parts(file: &Path) -> Vec<([[u32; 3]; 3], String)> {
+    use oocfmt::{BlockKind, ReadOptions, Reader};
+    let r = Reader::open(file, ReadOptions::default()).unwrap();
+    let meta = r.metadata();
+    let mut out = Vec::new();
+    for (id, e) in r.entries().iter().enumerate() {
+        if e.kind != BlockKind::Triangle {
+            continue;
+        }
+        let block = r.read_block(id as u32).unwrap();
+        let t = block.triangles(meta.triangle_attributes()).unwrap();
+        for i in 0..t.triangle_count() {
+            let part = t.part(i).unwrap().expect("a part id");
+            let key = t.positions(i).unwrap().map(|p| p.map(f32::to_bits));
+            out.push((key, meta.parts[part as usize].name.clone()));
+        }
+    }
+    out.sort();
+    out.dedup();
+    out
+}
+
+#[test]
+fn triangles_in_no_part_get_the_same_part_in_core_and_out_of_core() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("parts.obj");
+    parted_obj(&obj);
+    let mut tables = Vec::new();
+    let mut ids = Vec::new();
+    for (name, chunk) in [("in-core", 1 << 20), ("chunked", 16)] {
+        let out = dir.path().join(format!("{name}.oocf"));
+        let report = convert(
+            std::slice::from_ref(&obj),
+            &out,
+            &options(chunk),
+            &mut NoProgress,
+        )
+        .unwrap();
+        assert_eq!(report.out_of_core.is_some(), name == "chunked", "{name}");
+        assert!(
+            report.out_of_core.as_ref().is_none_or(|s| s.chunks >= 4),
+            "{report:?}"
+        );
+        let r = oocfmt::Reader::open(&out, oocfmt::ReadOptions::default()).unwrap();
+        let names: Vec<(&str, Option<u32>, u64)> = r
+            .metadata()
+            .parts
+            .iter()
+            .map(|p| (p.name.as_str(), p.parent, p.triangles))
+            .collect();
+        assert_eq!(
+            names,
+            [
+                ("bracket", None, 40),
+                ("bolt", Some(0), 40),
+                ("(no part)", None, 40)
+            ],
+            "{name}"
+        );
+        tables.push(r.metadata().parts.clone());
+        ids.push(stored_parts(&out));
+    }
+    assert_eq!(tables[0], tables[1]);
+    // Every triangle has one part, the same in both builds (copies carry their primary's).
+    assert_eq!(ids[0].len(), 120);
+    assert_eq!(ids[0], ids[1]);
+}

@@ -21,7 +21,17 @@ pub enum Scene {
     /// The power-8 Mandelbulb isosurface (the data set of the Áfra paper)
     Mandelbulb(Common),
     /// CAD-like clutter: thin pipes, cables and bolts, jittered, with coplanar overlapping panels
-    Cad(Common),
+    Cad(CadArgs),
+}
+
+#[derive(clap::Args)]
+pub struct CadArgs {
+    #[command(flatten)]
+    pub common: Common,
+    /// Parts (assemblies and their components, `o` and `g` lines) to name: about this many;
+    /// 0 names none. Default: one assembly per group of shapes, one component per shape
+    #[arg(long)]
+    pub parts: Option<u64>,
 }
 
 #[derive(clap::Args)]
@@ -46,7 +56,7 @@ pub struct Common {
 pub fn run(a: &Args) -> CliResult {
     let (name, c) = match &a.scene {
         Scene::Mandelbulb(c) => ("mandelbulb", c),
-        Scene::Cad(c) => ("cad", c),
+        Scene::Cad(c) => ("cad", &c.common),
     };
     let bar = progress::count(name, c.quiet || c.json);
     let mut tick = |done: u64, total: u64| {
@@ -63,11 +73,12 @@ pub fn run(a: &Args) -> CliResult {
             },
             &mut tick,
         ),
-        Scene::Cad(c) => cad::write_obj(
-            &c.output,
+        Scene::Cad(a) => cad::write_obj(
+            &a.common.output,
             &CadOptions {
-                triangles: c.tris,
-                seed: c.seed,
+                triangles: a.common.tris,
+                seed: a.common.seed,
+                parts: a.parts,
                 ..CadOptions::default()
             },
             &mut tick,

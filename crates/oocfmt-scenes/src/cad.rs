@@ -6,9 +6,17 @@
 //!
 //! Parts are made and written one at a time (memory is one part, a few thousand triangles),
 //! from a seeded splitmix64 stream in a fixed order, so the same options give the same file.
+//!
+//! The file is an assembly two levels deep, as CAD exports are: each group of shapes made
+//! together (a pipe run with its flanges, a cable bundle, a panel with its twin and bolts, a
+//! row of bolts) is an object `o assembly-K`, and each shape in it a group `g KIND-N` under it
+//! (the importer's part tree: assemblies of components). [`CadOptions::parts`] asks for
+//! another number of parts: components are then cut or merged, never the geometry.
 
 use std::f64::consts::TAU;
 use std::path::Path;
+#[cfg(test)]
+use std::path::PathBuf;
 
 use crate::rng::Rng;
 pub use crate::{GenError, GenReport};
@@ -42,6 +50,12 @@ pub struct CadOptions {
     pub seed: u64,
     /// Write a normal per vertex (`vn`), as CAD exports do.
     pub normals: bool,
+    /// How many parts (assemblies and components together) the file names: `None` the
+    /// natural ones (one assembly per group of shapes, one component per shape), `Some(0)`
+    /// none at all (no `o`/`g` lines: a scene without parts), `Some(1)` one assembly holding
+    /// everything, more: about that many (exactly, unless there are fewer triangles than
+    /// components asked for). The geometry is the same whatever the value.
+    pub parts: Option<u64>,
 }
 
 impl Default for CadOptions {
@@ -50,6 +64,7 @@ impl Default for CadOptions {
             triangles: 1_000_000,
             seed: 0,
             normals: true,
+            parts: None,
         }
     }
 }
@@ -82,17 +97,15 @@ fn generate(
         opts.triangles, opts.seed
     ))?;
     obj.mtllib(&mtl_name)?;
-    let mut scene = Scene::new(opts);
-    let mut out = Emitter {
-        obj: &mut obj,
-        normals: opts.normals,
-        material: None,
-        parts: 0,
-        triangles: 0,
-        target: opts.triangles,
-        peak: 0,
+    let labels = match opts.parts {
+        None => Labels::Natural,
+        Some(0) => Labels::Planned(Vec::new().into_iter().peekable()),
+        Some(n) => Labels::Planned(plan_parts(&dry_run(opts)?, n).into_iter().peekable()),
     };
+    let mut out = Emitter::new(Some(&mut obj), opts, labels);
+    let mut scene = Scene::new(opts);
     while out.triangles < out.target {
+        out.begin_group();
         scene.next_group(&mut out)?;
         progress(out.triangles, out.target);
     }
@@ -327,18 +340,100 @@ impl Part {
     }
 }
 
-/// Writes parts and keeps the counts.
+/// A shape as written: the group of shapes it was made with, its kind and the faces kept.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Shape {
+    group: u64,
+    kind: &'static str,
+    faces: u64,
+}
+
+/// A part line to write before face `face` of shape `shape` (both counted among the shapes
+/// written): `o assembly-K` and/or `g KIND-N`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Cut {
+    shape: u64,
+    face: u64,
+    assembly: Option<u64>,
+    component: Option<(&'static str, u64)>,
+}
+
+/// Where the part lines go.
+enum Labels {
+    /// One assembly per group of shapes, one component per shape.
+    Natural,
+    /// At the cuts [`plan_parts`] chose, in order.
+    Planned(std::iter::Peekable<std::vec::IntoIter<Cut>>),
+}
+
+/// Writes shapes (or, without a writer, only counts them) and keeps the counts.
 struct Emitter<'a> {
-    obj: &'a mut ObjWriter,
+    obj: Option<&'a mut ObjWriter>,
     normals: bool,
     material: Option<usize>,
-    parts: u64,
+    labels: Labels,
+    /// Groups begun, and the group whose assembly line was written last (natural labels).
+    groups: u64,
+    labelled_group: u64,
+    /// Shapes written: the number of the next component under natural labels.
+    shapes: u64,
+    /// What a dry run saw, shape by shape.
+    seen: Vec<Shape>,
     triangles: u64,
     target: u64,
     peak: usize,
 }
 
-impl Emitter<'_> {
+impl<'a> Emitter<'a> {
+    fn new(obj: Option<&'a mut ObjWriter>, opts: &CadOptions, labels: Labels) -> Emitter<'a> {
+        Emitter {
+            obj,
+            normals: opts.normals,
+            material: None,
+            labels,
+            groups: 0,
+            labelled_group: 0,
+            shapes: 0,
+            seen: Vec::new(),
+            triangles: 0,
+            target: opts.triangles,
+            peak: 0,
+        }
+    }
+
+    /// The shapes emitted next were made together: one assembly under natural labels.
+    fn begin_group(&mut self) {
+        self.groups += 1;
+    }
+
+    /// The part lines due before face `face` of the shape being written.
+    fn labels_at(&mut self, face: u64, kind: &'static str) -> Result<(), GenError> {
+        let (assembly, component) = match &mut self.labels {
+            Labels::Natural if face == 0 => {
+                let new = self.labelled_group != self.groups;
+                self.labelled_group = self.groups;
+                (new.then_some(self.groups), Some((kind, self.shapes)))
+            }
+            Labels::Natural => (None, None),
+            Labels::Planned(cuts) => {
+                match cuts.next_if(|c| c.shape + 1 == self.shapes && c.face == face) {
+                    Some(c) => (c.assembly, c.component),
+                    None => (None, None),
+                }
+            }
+        };
+        let Some(obj) = self.obj.as_deref_mut() else {
+            return Ok(());
+        };
+        if let Some(k) = assembly {
+            obj.object(&format!("assembly-{k}"))?;
+        }
+        if let Some((kind, n)) = component {
+            obj.group(&format!("{kind}-{n}"))?;
+        }
+        Ok(())
+    }
+
     /// Writes `part`, cut short if it would pass the target; jitters vertices from `rng`.
     fn emit(&mut self, part: &Part, rng: &mut Rng) -> Result<(), GenError> {
         let room = self.target.saturating_sub(self.triangles);
@@ -351,14 +446,19 @@ impl Emitter<'_> {
             return Ok(());
         };
         self.peak = self.peak.max(part.faces.len());
-        self.parts += 1;
-        self.obj.object(&format!("{}_{}", part.name, self.parts))?;
-        if self.material != Some(part.material) {
-            let name = MATERIALS.get(part.material).map_or("", |m| m.0);
-            self.obj.usemtl(name)?;
-            self.material = Some(part.material);
+        self.shapes += 1;
+        self.seen.push(Shape {
+            group: self.groups,
+            kind: part.name,
+            faces: keep as u64,
+        });
+        self.labels_at(0, part.name)?;
+        let change = self.material != Some(part.material);
+        self.material = Some(part.material);
+        let base = self.obj.as_deref().map_or(0, ObjWriter::vertex_count) + 1;
+        if let (true, Some(obj)) = (change, self.obj.as_deref_mut()) {
+            obj.usemtl(MATERIALS.get(part.material).map_or("", |m| m.0))?;
         }
-        let base = self.obj.vertex_count() + 1;
         for p in part.positions.iter().take(used) {
             let mut q = *p;
             for (a, c) in q.iter_mut().enumerate() {
@@ -366,24 +466,176 @@ impl Emitter<'_> {
                     *c += part.jitter * rng.range(-1.0, 1.0);
                 }
             }
-            self.obj.vertex(q.map(|c| c as f32))?;
-        }
-        if self.normals {
-            for n in part.normals.iter().take(used) {
-                self.obj.normal(n.map(|c| c as f32))?;
+            if let Some(obj) = self.obj.as_deref_mut() {
+                obj.vertex(q.map(|c| c as f32))?;
             }
         }
-        for f in faces {
+        if let (true, Some(obj)) = (self.normals, self.obj.as_deref_mut()) {
+            for n in part.normals.iter().take(used) {
+                obj.normal(n.map(|c| c as f32))?;
+            }
+        }
+        for (k, f) in faces.iter().enumerate() {
+            if k > 0 {
+                self.labels_at(k as u64, part.name)?;
+            }
+            let Some(obj) = self.obj.as_deref_mut() else {
+                continue;
+            };
             let v = f.map(|i| base + u64::from(i));
             if self.normals {
-                self.obj.face_normals(v, v)?;
+                obj.face_normals(v, v)?;
             } else {
-                self.obj.face(v)?;
+                obj.face(v)?;
             }
         }
         self.triangles += keep as u64;
         Ok(())
     }
+}
+
+/// The shapes the scene of `opts` writes, generated without writing them.
+fn dry_run(opts: &CadOptions) -> Result<Vec<Shape>, GenError> {
+    let mut out = Emitter::new(None, opts, Labels::Natural);
+    let mut scene = Scene::new(opts);
+    while out.triangles < out.target {
+        out.begin_group();
+        scene.next_group(&mut out)?;
+    }
+    Ok(out.seen)
+}
+
+/// The cuts that give `parts` ≥ 1 parts over `shapes`: as many assemblies as the natural
+/// share of them (at least one, each with a component), the rest components. Fewer components
+/// than shapes merge consecutive shapes; more cut the shapes with the most faces per piece
+/// first, assemblies then staying the natural ones. Part names stay unique: assemblies and
+/// components are numbered in file order.
+fn plan_parts(shapes: &[Shape], parts: u64) -> Vec<Cut> {
+    let c = shapes.len() as u64;
+    let mut groups: Vec<u64> = shapes.iter().map(|s| s.group).collect();
+    groups.dedup();
+    let a = groups.len() as u64;
+    let faces: u64 = shapes.iter().map(|s| s.faces).sum();
+    if c == 0 {
+        return Vec::new();
+    }
+    if parts == 1 {
+        return vec![Cut {
+            shape: 0,
+            face: 0,
+            assembly: Some(1),
+            component: None,
+        }];
+    }
+    if parts >= a + c {
+        split_shapes(shapes, (parts - a).min(faces))
+    } else {
+        // The natural share of assemblies, leaving each at least one component.
+        let share = (parts as f64 * a as f64 / (a + c) as f64).round() as u64;
+        let assemblies = share.clamp(1, parts / 2);
+        merge_shapes(shapes, assemblies, parts - assemblies)
+    }
+}
+
+/// `components` ≥ shapes: every group of shapes its assembly, every shape at least one
+/// component; the extra pieces go one at a time to the shape whose pieces are largest (ties:
+/// the first), and a shape's pieces split its faces evenly.
+fn split_shapes(shapes: &[Shape], components: u64) -> Vec<Cut> {
+    use std::cmp::Ordering;
+    use std::collections::BinaryHeap;
+
+    /// A shape by its faces per piece, largest first, then the lower index.
+    struct Load {
+        faces: u64,
+        pieces: u64,
+        index: usize,
+    }
+    impl PartialEq for Load {
+        fn eq(&self, o: &Self) -> bool {
+            self.cmp(o) == Ordering::Equal
+        }
+    }
+    impl Eq for Load {}
+    impl PartialOrd for Load {
+        fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+            Some(self.cmp(o))
+        }
+    }
+    impl Ord for Load {
+        fn cmp(&self, o: &Self) -> Ordering {
+            // faces / pieces compared without division.
+            (u128::from(self.faces) * u128::from(o.pieces))
+                .cmp(&(u128::from(o.faces) * u128::from(self.pieces)))
+                .then(o.index.cmp(&self.index))
+        }
+    }
+    let mut pieces = vec![1u64; shapes.len()];
+    let mut heap: BinaryHeap<Load> = shapes
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.faces > 1)
+        .map(|(index, s)| Load {
+            faces: s.faces,
+            pieces: 1,
+            index,
+        })
+        .collect();
+    let mut extra = components.saturating_sub(shapes.len() as u64);
+    while extra > 0 {
+        let Some(mut top) = heap.pop() else { break };
+        top.pieces += 1;
+        if let Some(p) = pieces.get_mut(top.index) {
+            *p = top.pieces;
+        }
+        if top.pieces < top.faces {
+            heap.push(top);
+        }
+        extra -= 1;
+    }
+    let mut cuts = Vec::new();
+    let (mut group, mut assembly, mut component) = (None, 0, 0);
+    for (i, (s, &n)) in shapes.iter().zip(&pieces).enumerate() {
+        for p in 0..n {
+            let new_group = p == 0 && group != Some(s.group);
+            if new_group {
+                group = Some(s.group);
+                assembly += 1;
+            }
+            component += 1;
+            cuts.push(Cut {
+                shape: i as u64,
+                face: p * s.faces / n,
+                assembly: new_group.then_some(assembly),
+                component: Some((s.kind, component)),
+            });
+        }
+    }
+    cuts
+}
+
+/// `components` < shapes: component j takes the shapes `⌊j·C/c⌋ ..`, assembly k the
+/// components `⌊k·c/a⌋ ..` (consecutive runs of nearly equal length).
+fn merge_shapes(shapes: &[Shape], assemblies: u64, components: u64) -> Vec<Cut> {
+    let c = shapes.len() as u64;
+    let start = |j: u64, of: u64, over: u64| -> u64 {
+        (u128::from(j) * u128::from(of) / u128::from(over.max(1))) as u64
+    };
+    let mut cuts = Vec::new();
+    let mut assembly = 0;
+    for j in 0..components {
+        let shape = start(j, c, components);
+        let new_assembly = assembly < assemblies && start(assembly, components, assemblies) == j;
+        if new_assembly {
+            assembly += 1;
+        }
+        cuts.push(Cut {
+            shape,
+            face: 0,
+            assembly: new_assembly.then_some(assembly),
+            component: Some((shapes.get(shape as usize).map_or("part", |s| s.kind), j + 1)),
+        });
+    }
+    cuts
 }
 
 /// The box the parts fill, and where the last parts went, so new parts crowd around old
@@ -771,6 +1023,120 @@ mod tests {
             // A part is a few thousand triangles at most, whatever the target.
             assert!(peak <= 6000, "{peak}");
         }
+        Ok(())
+    }
+
+    /// The parts a cut list names: (assemblies, components).
+    fn counted(cuts: &[Cut]) -> (u64, u64) {
+        let a = cuts.iter().filter(|c| c.assembly.is_some()).count() as u64;
+        let c = cuts.iter().filter(|c| c.component.is_some()).count() as u64;
+        (a, c)
+    }
+
+    #[test]
+    fn planned_parts_come_to_the_count_asked_for() -> Result<(), GenError> {
+        let opts = CadOptions {
+            triangles: 40_000,
+            seed: 4,
+            ..CadOptions::default()
+        };
+        let shapes = dry_run(&opts)?;
+        let mut groups: Vec<u64> = shapes.iter().map(|s| s.group).collect();
+        groups.dedup();
+        let natural = (groups.len() + shapes.len()) as u64;
+        assert!(shapes.len() > 100, "{} shapes", shapes.len());
+        assert_eq!(shapes.iter().map(|s| s.faces).sum::<u64>(), 40_000);
+        for parts in [1, 2, 3, 10, natural - 1, natural, natural + 1, 5 * natural] {
+            let cuts = plan_parts(&shapes, parts);
+            let (a, c) = counted(&cuts);
+            assert_eq!(a + c, parts, "{parts}: {a} assemblies, {c} components");
+            // In file order, starting at the first face with an assembly, inside the shapes.
+            assert!(cuts.first().is_some_and(|c| (c.shape, c.face) == (0, 0)));
+            assert!(cuts.first().is_some_and(|c| c.assembly.is_some()));
+            assert!(cuts
+                .windows(2)
+                .all(|w| (w[0].shape, w[0].face) < (w[1].shape, w[1].face)));
+            for cut in &cuts {
+                let shape = shapes.get(cut.shape as usize);
+                assert!(shape.is_some_and(|s| cut.face < s.faces), "{cut:?}");
+            }
+            // Every assembly holds a component (one part asked for: the assembly alone), and
+            // names are unique: numbered in order.
+            if parts > 1 {
+                assert!(cuts.iter().all(|c| c.component.is_some()));
+            }
+            let numbers: Vec<u64> = cuts
+                .iter()
+                .filter_map(|c| c.component)
+                .map(|c| c.1)
+                .collect();
+            assert!(numbers.iter().copied().eq(1..=c), "{parts}");
+            let numbers: Vec<u64> = cuts.iter().filter_map(|c| c.assembly).collect();
+            assert!(numbers.iter().copied().eq(1..=a), "{parts}");
+            // More parts than natural keep the natural assemblies.
+            if parts >= natural {
+                assert_eq!(a, groups.len() as u64);
+            }
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn the_million_triangle_scene_has_thousands_of_natural_parts() -> Result<(), GenError> {
+        let shapes = dry_run(&CadOptions::default())?;
+        let mut groups: Vec<u64> = shapes.iter().map(|s| s.group).collect();
+        groups.dedup();
+        let parts = groups.len() + shapes.len();
+        assert!((2000..100_000).contains(&parts), "{parts} parts");
+        Ok(())
+    }
+
+    /// The OBJ text without its part lines.
+    fn geometry(path: &Path) -> Result<String, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+        Ok(text
+            .lines()
+            .filter(|l| !l.starts_with("o ") && !l.starts_with("g "))
+            .collect::<Vec<_>>()
+            .join("\n"))
+    }
+
+    #[test]
+    fn parts_change_only_the_part_lines() -> Result<(), String> {
+        let dir = tempfile::tempdir().map_err(|e| e.to_string())?;
+        let write = |parts: Option<u64>, name: &str| -> Result<(PathBuf, String), String> {
+            // The same file name everywhere: the `mtllib` line names it.
+            let sub = dir.path().join(name);
+            std::fs::create_dir_all(&sub).map_err(|e| e.to_string())?;
+            let path = sub.join("cad.obj");
+            let opts = CadOptions {
+                triangles: 20_000,
+                seed: 2,
+                parts,
+                ..CadOptions::default()
+            };
+            generate(&path, &opts, &mut |_, _| {}).map_err(|e| e.to_string())?;
+            let text = std::fs::read_to_string(&path).map_err(|e| e.to_string())?;
+            Ok((path, text))
+        };
+        let (natural, text) = write(None, "natural")?;
+        let lines = |t: &str, p: &str| t.lines().filter(|l| l.starts_with(p)).count();
+        let (o, g) = (lines(&text, "o "), lines(&text, "g "));
+        assert!(o > 10 && g > o, "{o} assemblies, {g} components");
+        assert!(text.lines().any(|l| l == "o assembly-1"), "{text:.300}");
+        let want = geometry(&natural)?;
+        for (parts, name) in [(Some(0), "none"), (Some(1), "one"), (Some(9), "nine")] {
+            let (path, text) = write(parts, name)?;
+            assert!(geometry(&path)? == want, "{parts:?} changed the geometry");
+            let n = (lines(&text, "o ") + lines(&text, "g ")) as u64;
+            assert_eq!(n, parts.unwrap_or_default(), "{parts:?}");
+        }
+        let many = 3 * (o + g) as u64;
+        let (path, text) = write(Some(many), "many")?;
+        assert!(geometry(&path)? == want);
+        assert_eq!((lines(&text, "o ") + lines(&text, "g ")) as u64, many);
+        // Deterministic.
+        assert!(write(Some(many), "again")?.1 == text);
         Ok(())
     }
 

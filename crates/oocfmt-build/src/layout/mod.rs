@@ -5,6 +5,9 @@
 //! node names its children's block, a leaf its triangle block). Block order in the file:
 //! treelet blocks by level, then triangle blocks, then proxy blocks.
 
+pub(crate) mod parts;
+#[cfg(test)]
+mod parts_tests;
 pub(crate) mod plan;
 #[cfg(test)]
 pub(crate) mod tests;
@@ -266,7 +269,10 @@ pub fn build_blocks(
         triangle_materials: mesh.has_materials(),
         six_sample_voxels: false,
     };
-    let attrs = schema.triangle_attributes();
+    // Ids per triangle and a part word per LOD entry only with two or more parts: a scene of
+    // one part (or none) writes what it wrote before parts existed.
+    let attrs = parts::triangle_attributes(schema.triangle_attributes(), mesh.parts.len());
+    let kinds = opts.write.lod.with_parts(mesh.parts.len() >= 2);
 
     // The triangle blocks do not depend on the LOD data: their serial planning runs beside
     // the treelet plan's serial passes, and the sampling keeps every core busy after both.
@@ -277,7 +283,7 @@ pub fn build_blocks(
                 tree,
                 opts.treelet_height,
                 opts.voxel_threshold,
-                opts.write.lod,
+                kinds,
                 block_size,
                 opts.max_proxies(mesh.triangles.len()),
             )
@@ -419,6 +425,10 @@ fn metadata(
     };
     let mut params: Vec<(String, String)> = tree.params().to_vec();
     params.extend(lod_params(plan.kinds, opts.voxel_threshold));
+    let mut totals = parts::PartTotals::new(mesh.parts.len());
+    if !mesh.parts.is_empty() {
+        totals.add(&parts::tally(mesh, |_| true));
+    }
     params.push((
         "triangles_per_proxy".into(),
         opts.triangles_per_proxy.to_string(),
@@ -442,11 +452,14 @@ fn metadata(
             generator: opts.generator.clone(),
             sources: opts.sources.clone(),
         },
+        parts: totals.table(&mesh.parts),
     })
 }
 
-/// The build parameters that say how the LOD data was made.
+/// The build parameters that say how the LOD data was made (part words aside: the header
+/// says whether entries have them).
 pub(crate) fn lod_params(kinds: LodKinds, voxel_threshold: f32) -> Vec<(String, String)> {
+    let kinds = kinds.with_parts(false);
     let mut params = vec![
         ("lod_sampling".into(), LOD_SAMPLING.into()),
         ("voxel_threshold".into(), voxel_threshold.to_string()),

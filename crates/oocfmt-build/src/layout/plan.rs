@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use oocfmt::records::{
     LodKinds, Rlod, TreeletBlockWriter, NODE_BASIC_LEN, NODE_LEAF_LEN, NODE_LOD_LEN, NO_PROXY,
-    RLOD_LEN,
+    PART_WORD_LEN, RLOD_LEN,
 };
 use rayon::prelude::*;
 
@@ -124,7 +124,7 @@ impl TreePlan {
         self.rlods.get(self.info(id).lod as usize)
     }
 
-    /// Bytes of a LOD node's entry in the LOD area.
+    /// Bytes of a LOD node's entry in the LOD area: voxel, R-LOD record, part word.
     pub fn lod_entry_bytes(&self, id: NodeId) -> usize {
         let voxel = if self.kinds.voxel {
             self.lod_data(id)
@@ -132,7 +132,9 @@ impl TreePlan {
         } else {
             0
         };
-        voxel + if self.kinds.rlod { RLOD_LEN } else { 0 }
+        voxel
+            + if self.kinds.rlod { RLOD_LEN } else { 0 }
+            + if self.kinds.parts { PART_WORD_LEN } else { 0 }
     }
 }
 
@@ -171,7 +173,8 @@ pub(crate) struct PlanSpec<'a> {
 /// Where LOD nodes' data comes from.
 pub(crate) enum LodSource<'a> {
     /// Ray-sampled against the tree's own subtrees (voxels and proxies) and, when `kinds`
-    /// has them, R-LOD planes fitted to them; the LOD entries hold `kinds`.
+    /// has them, R-LOD planes fitted to them; the LOD entries hold `kinds` (an R-LOD-only
+    /// entry's part word is its plane's largest part, not the rays').
     Sample {
         mesh: &'a Mesh,
         threshold: f32,
@@ -253,13 +256,23 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
             kinds,
         } => {
             plan.kinds = *kinds;
+            let mut parts = Vec::new();
             if kinds.rlod {
-                plan.rlods = crate::lod::rlods(mesh, tree, &lod_nodes);
+                (plan.rlods, parts) = crate::lod::rlods(mesh, tree, &lod_nodes)
+                    .into_iter()
+                    .unzip();
             }
             let totals = totals.ok_or(LayoutError::Internal("no subtree totals"))?;
             let info = &plan.info;
             let cell = |id: NodeId| info.get(id.index()).map_or(Bounds::EMPTY, |i| i.cell);
-            crate::lod::compute_in(mesh, tree, &lod_nodes, &cell, &totals, *threshold, &wants)
+            let mut lod =
+                crate::lod::compute_in(mesh, tree, &lod_nodes, &cell, &totals, *threshold, &wants);
+            if !kinds.voxel && mesh.part_ids.is_some() {
+                for (d, &p) in lod.iter_mut().zip(&parts) {
+                    d.part = p;
+                }
+            }
+            lod
         }
         LodSource::Given { data, kinds } => {
             plan.kinds = *kinds;

@@ -12,13 +12,13 @@ use super::*;
 use crate::kdtree::{build, KdBuildOptions, KdNode, NodeId};
 use oocfmt_scenes::demo_scene;
 
-type Res<T> = std::result::Result<T, String>;
+pub(super) type Res<T> = std::result::Result<T, String>;
 
-fn s<E: std::fmt::Display>(e: E) -> String {
+pub(super) fn s<E: std::fmt::Display>(e: E) -> String {
     e.to_string()
 }
 
-fn opts(block_size: u64, codec: Codec, treelet_height: u8) -> LayoutOptions {
+pub(super) fn opts(block_size: u64, codec: Codec, treelet_height: u8) -> LayoutOptions {
     let write = WriteOptions {
         codec,
         ..WriteOptions::default()
@@ -35,19 +35,21 @@ fn opts(block_size: u64, codec: Codec, treelet_height: u8) -> LayoutOptions {
 
 /// What reading a container back found.
 #[derive(Debug, Default)]
-struct Found {
-    meta: Metadata,
-    treelet_blocks: usize,
-    triangle_blocks: usize,
-    proxy_blocks: usize,
-    compressed_blocks: usize,
+pub(super) struct Found {
+    pub(super) meta: Metadata,
+    pub(super) treelet_blocks: usize,
+    pub(super) triangle_blocks: usize,
+    pub(super) proxy_blocks: usize,
+    pub(super) compressed_blocks: usize,
     /// Mesh triangles some leaf reaches.
-    reached: HashSet<usize>,
+    pub(super) reached: HashSet<usize>,
     /// Mesh triangle ids of every primary copy, over all blocks.
-    primaries: Vec<usize>,
+    pub(super) primaries: Vec<usize>,
+    /// The part word of every LOD entry, in file order (`None` without `PART_IDS`).
+    pub(super) lod_parts: Vec<Option<u32>>,
 }
 
-fn triangle_ids(mesh: &Mesh) -> HashMap<[[u32; 3]; 3], Vec<usize>> {
+pub(super) fn triangle_ids(mesh: &Mesh) -> HashMap<[[u32; 3]; 3], Vec<usize>> {
     let mut map: HashMap<[[u32; 3]; 3], Vec<usize>> = HashMap::new();
     for t in 0..mesh.triangles.len() {
         if let Some(c) = mesh.corners(t) {
@@ -59,13 +61,15 @@ fn triangle_ids(mesh: &Mesh) -> HashMap<[[u32; 3]; 3], Vec<usize>> {
     map
 }
 
-/// Opens `path`, decodes every block, walks the tree from the root and checks the layout rules.
-fn read_back(path: &Path, mesh: &Mesh) -> Res<Found> {
+/// Opens `path`, decodes every block, walks the tree from the root and checks the layout rules;
+/// every triangle record (copies included) must carry the part id of its mesh triangle.
+pub(super) fn read_back(path: &Path, mesh: &Mesh) -> Res<Found> {
     let reader = Reader::open(path, ReadOptions::default()).map_err(s)?;
     let meta = reader.metadata().clone();
     let mut r = ReadBack {
         reader: &reader,
-        attrs: meta.schema.triangle_attributes(),
+        attrs: meta.triangle_attributes(),
+        mesh,
         ids: triangle_ids(mesh),
         found: Found {
             meta: meta.clone(),
@@ -110,6 +114,7 @@ fn read_back(path: &Path, mesh: &Mesh) -> Res<Found> {
 struct ReadBack<'a> {
     reader: &'a Reader,
     attrs: u16,
+    mesh: &'a Mesh,
     ids: HashMap<[[u32; 3]; 3], Vec<usize>>,
     found: Found,
 }
@@ -157,10 +162,12 @@ impl ReadBack<'_> {
                 BlockKind::Treelet => {
                     self.found.treelet_blocks += 1;
                     let t = block.treelets().map_err(s)?;
+                    let lod_parts = &mut self.found.lod_parts;
                     let sum = t
-                        .walk(|_, _, n| {
+                        .walk_lods(|_, _, n, entry| {
                             if let Node::Lod { voxel_offset, .. } = n {
                                 six |= matches!(t.voxel(*voxel_offset), Ok(Voxel::Six(_, _)));
+                                lod_parts.push(entry.part);
                             }
                             Ok(())
                         })
@@ -188,6 +195,23 @@ impl ReadBack<'_> {
                         .find(|&m| usize::from(m) >= self.found.meta.materials.len())
                     {
                         return Err(format!("material {m} out of range"));
+                    }
+                    for i in 0..t.triangle_count() {
+                        let stored = t.part(i).map_err(s)?;
+                        let key = t.positions(i).map_err(s)?.map(|p| p.map(f32::to_bits));
+                        let ids = self.mesh.part_ids.as_ref();
+                        let expected: Vec<Option<u32>> = self
+                            .ids
+                            .get(&key)
+                            .into_iter()
+                            .flatten()
+                            .map(|&m| ids.and_then(|ids| ids.get(m).copied()))
+                            .collect();
+                        if !expected.contains(&stored) {
+                            return Err(format!(
+                                "block {id} triangle {i}: part {stored:?}, the mesh says {expected:?}"
+                            ));
+                        }
                     }
                 }
                 BlockKind::Proxy => {
@@ -298,7 +322,7 @@ impl ReadBack<'_> {
     }
 }
 
-fn build_tree(mesh: &Mesh, max_leaf: u32) -> Res<KdTree> {
+pub(super) fn build_tree(mesh: &Mesh, max_leaf: u32) -> Res<KdTree> {
     build(
         mesh,
         &KdBuildOptions {
@@ -309,7 +333,11 @@ fn build_tree(mesh: &Mesh, max_leaf: u32) -> Res<KdTree> {
     .map_err(s)
 }
 
-fn write_and_read(mesh: &Mesh, tree: &KdTree, o: &LayoutOptions) -> Res<(Found, Vec<u8>)> {
+pub(super) fn write_and_read(
+    mesh: &Mesh,
+    tree: &KdTree,
+    o: &LayoutOptions,
+) -> Res<(Found, Vec<u8>)> {
     let dir = tempfile::tempdir().map_err(s)?;
     let path = dir.path().join("t.oocf");
     let (summary, meta) = write_container(&path, mesh, tree, o).map_err(s)?;

@@ -125,7 +125,8 @@ impl Encoder<'_> {
             .cell
             .half_diagonal_up()
             .ok_or(LayoutError::SceneTooLarge)?;
-        // The LOD entry (spec §3): the voxel, then the R-LOD, as the file has them.
+        // The LOD entry (spec §3): the voxel, then the R-LOD, as the file has them, then the
+        // part word.
         let voxel_at = self
             .plan
             .kinds
@@ -142,6 +143,10 @@ impl Encoder<'_> {
             ),
             false => None,
         };
+        // The part word closes the entry in a file with `PART_IDS`.
+        if self.plan.kinds.parts {
+            self.w.push_lod_part(data.part);
+        }
         let voxel_offset = voxel_at
             .or(rlod_at)
             .ok_or(LayoutError::Internal("a LOD node has an empty LOD entry"))?;

@@ -5,10 +5,12 @@
 // Fx hashing: these maps take a lookup per triangle corner; SipHash cost 6 % of a convert.
 use rustc_hash::FxHashMap as HashMap;
 
-use oocfmt::records::triangle::{oct_encode, TriangleBlockWriter, ATTR_MATERIALS, MAX_ITEMS};
+use oocfmt::records::triangle::{
+    oct_encode, TriangleBlockWriter, ATTR_MATERIALS, ATTR_PART_WIDTH, MAX_ITEMS,
+};
 use oocfmt::records::{Triangle, Vertex};
 
-use super::LayoutError;
+use super::{parts, LayoutError};
 use crate::kdtree::{KdNode, KdTree};
 use oocfmt_meshio::mesh::Mesh;
 
@@ -335,7 +337,9 @@ pub(crate) fn encode_triangles(
         } else {
             None
         };
-        local_tri.insert(t, w.push_triangle(Triangle { v, material })?);
+        // A copy carries its primary's id: both are the one mesh triangle.
+        let part = (attrs & ATTR_PART_WIDTH != 0).then(|| parts::part_of(mesh, t as usize));
+        local_tri.insert(t, w.push_triangle(Triangle { v, material, part })?);
     }
     for t in &planned.list {
         let local = local_tri.get(t).copied().ok_or(LayoutError::Internal(

@@ -8,6 +8,11 @@
 //! double as the proxy's six axis directions; the twelve diagonal directions shoot their own
 //! rays over the cell's silhouette. Ray counts grow with the subtree up to a fixed cap, so a
 //! node costs O(rays × depth), not O(triangles).
+//!
+//! In a scene of several parts the face rays also vote: the entry's part word is the part
+//! they hit most (ties to the lowest id), so picking at a coarse level answers the part that
+//! covers the cell as seen. An R-LOD-only entry, which no ray defines, takes the part of the
+//! largest triangle area clipped to the cell, as does a cell no ray hit.
 
 pub mod rlod;
 mod sampling;
@@ -25,7 +30,7 @@ use crate::raycast::{cross, dot, normalise, sub, triangle_corners, Prepared, Tra
 use oocfmt_meshio::mesh::{Bounds, Mesh};
 pub(crate) use sampling::shade;
 pub use sampling::{
-    Oracle, Shade, DIAGONAL_RAYS_MAX, DIAGONAL_RAYS_MIN, FACE_RAYS_BASE, FACE_RAYS_MAX,
+    Oracle, Seen, Shade, DIAGONAL_RAYS_MAX, DIAGONAL_RAYS_MIN, FACE_RAYS_BASE, FACE_RAYS_MAX,
     FACE_RAYS_MIN, TRIANGLES_PER_DIAGONAL_RAY, TRIANGLES_PER_FACE_RAY,
 };
 
@@ -39,9 +44,10 @@ pub const RLOD_FIT: &str = "area-weighted PCA of the triangles clipped to the ce
      deviation: largest vertex distance; expansion: deviation + radius/128";
 
 /// The R-LOD records of `nodes`, in the same order: each node's subtree triangles clipped to
-/// its cell and fitted by [`rlod::fit`]. Runs in parallel over the nodes; the result does not
-/// depend on the thread count.
-pub fn rlods(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId]) -> Vec<Rlod> {
+/// its cell and fitted by [`rlod::fit`], with the part of the largest clipped area (the part
+/// word of an R-LOD-only entry). Runs in parallel over the nodes; the result does not depend
+/// on the thread count.
+pub fn rlods(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId]) -> Vec<(Rlod, u32)> {
     let cells = cells_of(tree, nodes);
     nodes
         .par_iter()
@@ -53,7 +59,8 @@ pub fn rlods(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId]) -> Vec<Rlod> {
                 .map_or(Bounds::EMPTY, |&(_, c)| c);
             // An unrepresentable radius fails the layout when the node is encoded.
             let radius = cell.half_diagonal_up().unwrap_or(f32::MAX);
-            rlod::fit(mesh, &subtree_triangles(tree, id), cell).record(radius)
+            let fit = rlod::fit(mesh, &subtree_triangles(tree, id), cell);
+            (fit.record(radius), fit.part)
         })
         .collect()
 }
@@ -78,6 +85,10 @@ pub struct LodData {
     pub proxy_samples: [Sample; 18],
     /// Total area of the subtree's distinct triangles.
     pub area: f32,
+    /// The part the entry stands for (its part word when the file has `PART_IDS`): the part
+    /// most face rays hit; without hits, or for an R-LOD-only entry, the part of the largest
+    /// triangle area in the cell. 0 in a scene without part ids.
+    pub part: u32,
 }
 
 impl LodData {
@@ -301,8 +312,15 @@ fn node_lod<'a>(
         threshold,
         diagonals,
         force_max: false,
+        count_parts: mesh.part_ids.is_some(),
     }
     .run();
+    // No ray hit (or no part ids): the part of the largest area in the cell.
+    let part = sampled.part.unwrap_or_else(|| match mesh.part_ids {
+        Some(_) if each => rlod::fit(mesh, &scratch.triangles, cell).part,
+        Some(_) => rlod::fit(mesh, &subtree_triangles(tree, id), cell).part,
+        None => 0,
+    });
     LodData {
         // No ray hit anything (a sliver too thin for the rays between them): the voxel still
         // needs a colour, so fall back on the area-weighted mean of the subtree.
@@ -317,14 +335,22 @@ fn node_lod<'a>(
         }),
         proxy_samples: sampled.proxy,
         area: (totals.area as f32).min(f32::MAX),
+        part,
     }
 }
 
 /// The LOD data of a cell whose subtree is not in memory (the top of an out-of-core build):
 /// `answer` gives what each ray sees. Casts the most rays on every face and direction, so a
 /// first call that records the rays and a second that answers them cast the same sequence.
-/// `area` is the subtree's triangle area; a cell no ray hits gets a grey voxel.
-pub fn sample_cell(cell: Bounds, threshold: f32, area: f64, answer: Oracle<'_>) -> LodData {
+/// `area` is the subtree's triangle area; a cell no ray hits gets a grey voxel and the part
+/// `fallback_part`; otherwise the part is the one most face rays hit.
+pub fn sample_cell(
+    cell: Bounds,
+    threshold: f32,
+    area: f64,
+    fallback_part: u32,
+    answer: Oracle<'_>,
+) -> LodData {
     let mesh = Mesh::default();
     let tree = KdTree::empty();
     let mut tracer = Tracer::new(&mesh, &tree);
@@ -337,6 +363,7 @@ pub fn sample_cell(cell: Bounds, threshold: f32, area: f64, answer: Oracle<'_>) 
         threshold,
         diagonals: true,
         force_max: true,
+        count_parts: true,
     }
     .run();
     LodData {
@@ -346,6 +373,7 @@ pub fn sample_cell(cell: Bounds, threshold: f32, area: f64, answer: Oracle<'_>) 
         )),
         proxy_samples: sampled.proxy,
         area: (area as f32).min(f32::MAX),
+        part: sampled.part.unwrap_or(fallback_part),
     }
 }
 

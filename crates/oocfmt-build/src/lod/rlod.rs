@@ -39,6 +39,9 @@ pub struct PlaneFit {
     pub projected: f64,
     /// Σ of their projected areas times their cosine to the normal, (A · n)² / |A|.
     pub cosine_weighted: f64,
+    /// The part with the largest clipped area (ties: the lowest id); 0 when the triangles
+    /// were given no parts.
+    pub part: u32,
 }
 
 /// Sums over clipped polygons, relative to the cell's centre.
@@ -61,8 +64,9 @@ struct Moments {
 }
 
 impl Moments {
-    fn add_polygon(&mut self, poly: &[[f64; 3]], colour: [f64; 3]) {
-        let Some(&a) = poly.first() else { return };
+    /// Adds a clipped polygon; returns its area.
+    fn add_polygon(&mut self, poly: &[[f64; 3]], colour: [f64; 3]) -> f64 {
+        let Some(&a) = poly.first() else { return 0.0 };
         let mut poly_area = 0.0;
         for w in poly.windows(2).skip(1) {
             let (b, c) = (w[0], w[1]);
@@ -107,15 +111,17 @@ impl Moments {
             }
             self.vertices += 1.0;
         }
+        poly_area
     }
 }
 
 /// Fits the R-LOD plane of the triangles `tris` of `mesh` clipped to `cell`.
 pub fn fit(mesh: &Mesh, tris: &[u32], cell: Bounds) -> PlaneFit {
     let mut moments = PlaneMoments::new(cell);
+    let part = |t: u32| Some(*mesh.part_ids.as_ref()?.get(t as usize)?);
     for &t in tris {
         if let Some(c) = mesh.corners(t as usize) {
-            moments.add(c, || {
+            moments.add(c, part(t), || {
                 mesh.triangles
                     .get(t as usize)
                     .and_then(|idx| vertex_colour(mesh, idx))
@@ -167,6 +173,8 @@ pub struct PlaneMoments {
     frame: Frame,
     moments: Moments,
     scratch: Clip,
+    /// Clipped area by part, for the triangles given one (summed in the order they come).
+    part_areas: std::collections::BTreeMap<u32, f64>,
 }
 
 impl PlaneMoments {
@@ -176,15 +184,35 @@ impl PlaneMoments {
             frame: Frame::new(cell),
             moments: Moments::default(),
             scratch: Clip::default(),
+            part_areas: std::collections::BTreeMap::new(),
         }
     }
 
-    /// Adds one triangle; `colour` (linear RGB) is asked only when the triangle reaches the
-    /// cell.
-    pub fn add(&mut self, corners: [[f32; 3]; 3], colour: impl FnOnce() -> [f64; 3]) {
+    /// Adds one triangle of `part` (`None`: the scene has no part ids); `colour` (linear RGB)
+    /// is asked only when the triangle reaches the cell.
+    pub fn add(
+        &mut self,
+        corners: [[f32; 3]; 3],
+        part: Option<u32>,
+        colour: impl FnOnce() -> [f64; 3],
+    ) {
         if self.frame.clip(corners, &mut self.scratch) {
-            self.moments.add_polygon(&self.scratch.out, colour());
+            let area = self.moments.add_polygon(&self.scratch.out, colour());
+            if let Some(p) = part {
+                *self.part_areas.entry(p).or_insert(0.0) += area;
+            }
         }
+    }
+
+    /// The part with the largest clipped area so far (ties: the lowest id), 0 for none.
+    fn largest_part(&self) -> u32 {
+        let mut best: Option<(u32, f64)> = None;
+        for (&p, &a) in &self.part_areas {
+            if best.is_none_or(|(_, b)| a > b) {
+                best = Some((p, a));
+            }
+        }
+        best.map_or(0, |(p, _)| p)
     }
 
     /// The plane and its point relative to the cell's centre, as fitted (no rounding through
@@ -237,6 +265,7 @@ impl PlaneMoments {
             section: section_area(&self.frame, normal, point),
             projected: 0.0,
             cosine_weighted: 0.0,
+            part: self.largest_part(),
         };
         (plane, point)
     }

@@ -39,8 +39,12 @@ pub const TRIANGLES_PER_DIAGONAL_RAY: usize = 24;
 /// What a ray sees: the normal turned to face it, the mesh's own normal, and the colour.
 pub type Shade = ([f64; 3], [f64; 3], [f64; 3]);
 
-/// Answers a ray `(ray, t1, eps)` from elsewhere: the shaded first hit in `0 ..= t1`.
-pub type Oracle<'t> = &'t mut dyn FnMut(&Ray, f64, f64) -> Option<Shade>;
+/// What a ray sees and the part of the triangle it hits (0 in a scene without part ids).
+pub type Seen = (Shade, u32);
+
+/// Answers a ray `(ray, t1, eps)` from elsewhere: the shaded first hit in `0 ..= t1`, and its
+/// part.
+pub type Oracle<'t> = &'t mut dyn FnMut(&Ray, f64, f64) -> Option<Seen>;
 
 /// What the rays of one node are tested against.
 pub(super) enum Target<'t> {
@@ -140,6 +144,9 @@ pub(super) struct NodeSampler<'a, 'b> {
     /// Cast the most rays everywhere, whatever the hits say: the ray sequence is then fixed in
     /// advance, as an [`Target::Oracle`] that records rays before answering them needs.
     pub force_max: bool,
+    /// Count the parts the face rays hit (the mesh's part ids, or the oracle's answers): the
+    /// entry's part word is the one hit most.
+    pub count_parts: bool,
 }
 
 /// Where a node's rays start: the cell's low corner and extent in f64, and the tolerance of
@@ -160,10 +167,27 @@ impl Frame {
     }
 }
 
-/// The voxel (`None` when no ray hit anything) and the 18 proxy samples of a node.
+/// The voxel (`None` when no ray hit anything), the 18 proxy samples of a node, and the part
+/// most face rays hit (`None` without hits or without counting).
 pub(super) struct Sampled {
     pub voxel: Option<Voxel>,
     pub proxy: [Sample; 18],
+    pub part: Option<u32>,
+}
+
+/// The part most often named in `votes` (ties: the lowest id); `None` for no votes. Sorting
+/// makes it independent of the order the hits came in.
+pub(crate) fn majority(votes: &mut [u32]) -> Option<u32> {
+    votes.sort_unstable();
+    let mut best: Option<(u32, usize)> = None;
+    for run in votes.chunk_by(|a, b| a == b) {
+        if let Some(&part) = run.first() {
+            if best.is_none_or(|(_, n)| run.len() > n) {
+                best = Some((part, run.len()));
+            }
+        }
+    }
+    best.map(|(part, _)| part)
 }
 
 impl NodeSampler<'_, '_> {
@@ -190,6 +214,7 @@ impl NodeSampler<'_, '_> {
         let face_area = |f: usize| frame.face_area(f);
 
         let mut faces = [Acc::default(); 6];
+        let mut votes = Vec::new();
         let base = if self.force_max {
             FACE_RAYS_MAX
         } else {
@@ -202,7 +227,7 @@ impl NodeSampler<'_, '_> {
             let a = f / 2;
             let mut dir = [0.0; 3];
             dir[a] = if f % 2 == 0 { 1.0 } else { -1.0 };
-            self.cast_face(acc, f, dir, 0..base, &frame);
+            self.cast_face(acc, f, dir, 0..base, &frame, &mut votes);
             // More rays where the standard error could move the sample by half the one-sample
             // threshold.
             let mut cast = base;
@@ -210,7 +235,7 @@ impl NodeSampler<'_, '_> {
                 && acc.standard_error() > f64::from(self.threshold) / 2.0
             {
                 let more = (4 * cast).min(FACE_RAYS_MAX);
-                self.cast_face(acc, f, dir, cast..more, &frame);
+                self.cast_face(acc, f, dir, cast..more, &frame, &mut votes);
                 cast = more;
             }
         }
@@ -244,10 +269,12 @@ impl NodeSampler<'_, '_> {
         Sampled {
             voxel: voxel(&faces, &areas, self.threshold),
             proxy,
+            part: majority(&mut votes),
         }
     }
 
-    /// Casts rays `range` of face `f`'s sequence ([`sequence`]) straight through the cell.
+    /// Casts rays `range` of face `f`'s sequence ([`sequence`]) straight through the cell;
+    /// the part of each hit goes to `votes` when parts are counted.
     fn cast_face(
         &mut self,
         acc: &mut Acc,
@@ -255,6 +282,7 @@ impl NodeSampler<'_, '_> {
         dir: [f64; 3],
         range: std::ops::Range<usize>,
         frame: &Frame,
+        votes: &mut Vec<u32>,
     ) {
         let (ext, eps) = (&frame.ext, frame.eps);
         if let Target::Subtree(node) = self.target {
@@ -272,8 +300,12 @@ impl NodeSampler<'_, '_> {
                     .first_hits_along(node, rays, ext[f / 2], eps, hits);
                 for hit in hits.iter() {
                     acc.rays += 1;
-                    if let Some((facing, raw, colour)) = hit.and_then(|h| self.shade(&h, dir)) {
+                    let Some(h) = hit else { continue };
+                    if let Some((facing, raw, colour)) = self.shade(h, dir) {
                         acc.add(facing, raw, colour);
+                        if self.count_parts {
+                            votes.push(self.part_of(h.triangle));
+                        }
                     }
                 }
             }
@@ -283,8 +315,20 @@ impl NodeSampler<'_, '_> {
             let origin = face_point(f, i, frame);
             let ray = Ray::new(origin, dir);
             acc.rays += 1;
-            self.trace(acc, &ray, ext[f / 2], eps);
+            if let (Some(part), true) = (self.trace(acc, &ray, ext[f / 2], eps), self.count_parts) {
+                votes.push(part);
+            }
         }
+    }
+
+    /// The part of mesh triangle `t` (0 without part ids).
+    fn part_of(&self, t: u32) -> u32 {
+        self.mesh
+            .part_ids
+            .as_ref()
+            .and_then(|ids| ids.get(t as usize))
+            .copied()
+            .unwrap_or(0)
     }
 
     /// Casts `rays` rays along `dir` from the faces it enters through, spread over them in
@@ -337,20 +381,20 @@ impl NodeSampler<'_, '_> {
         shade_at(self.mesh, hit, self.tracer.corners(hit.triangle)?, dir)
     }
 
-    fn trace(&mut self, acc: &mut Acc, ray: &Ray, t1: f64, eps: f64) {
-        let shaded = match &mut self.target {
-            Target::Each(triangles) => {
-                first_hit_of(triangles, ray, 0.0, t1, eps).and_then(|hit| self.shade(&hit, ray.dir))
-            }
+    /// Traces one ray into `acc`; returns the part of what it hit.
+    fn trace(&mut self, acc: &mut Acc, ray: &Ray, t1: f64, eps: f64) -> Option<u32> {
+        let seen = match &mut self.target {
+            Target::Each(triangles) => first_hit_of(triangles, ray, 0.0, t1, eps)
+                .and_then(|hit| Some((self.shade(&hit, ray.dir)?, self.part_of(hit.triangle)))),
             Target::Subtree(node) => {
                 let hit = self.tracer.first_hit(*node, ray, 0.0, t1, eps);
-                hit.and_then(|hit| self.shade(&hit, ray.dir))
+                hit.and_then(|hit| Some((self.shade(&hit, ray.dir)?, self.part_of(hit.triangle))))
             }
             Target::Oracle(answer) => answer(ray, t1, eps),
         };
-        if let Some((facing, raw, colour)) = shaded {
-            acc.add(facing, raw, colour);
-        }
+        let ((facing, raw, colour), part) = seen?;
+        acc.add(facing, raw, colour);
+        Some(part)
     }
 }
 

@@ -162,6 +162,8 @@ pub struct Parts<'a> {
     pub spill: &'a Path,
     /// Final proxy records in id order.
     pub proxies: &'a [u8],
+    /// What the LOD entries hold, the part word included: how spilled treelet blocks parse.
+    pub lod: oocfmt::records::LodKinds,
 }
 
 /// Writes every block in file order, then the proxies, then the metadata. Top blocks come
@@ -178,6 +180,7 @@ pub fn write(
         top: top_raw,
         spill,
         proxies,
+        lod,
     } = *parts;
     let block_size = 1usize << write.block_size_log2.min(20);
     let spill_file = File::open(spill).map_err(|e| OocError::spill(spill, e))?;
@@ -201,7 +204,7 @@ pub fn write(
                         .read_exact_at(&mut raw, b.offset)
                         .map_err(|e| OocError::spill(spill, e))?;
                     if b.kind == BlockKind::Treelet {
-                        order.patch_treelets(i, &mut raw, write.lod)?;
+                        order.patch_treelets(i, &mut raw, lod)?;
                     }
                     Ok(RawBlock {
                         kind: b.kind,

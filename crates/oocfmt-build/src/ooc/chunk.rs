@@ -13,6 +13,7 @@ use super::soup::SoupReader;
 use super::split::Chunk;
 use super::OocError;
 use crate::kdtree::{build_cell, KdBuildOptions, KdNode, KdTree, NodeId};
+use crate::layout::parts::{self, PartStat};
 use crate::layout::plan::{plan_tree_with, LodSource, PlanSpec, Role, TreePlan};
 use crate::layout::treelets::encode_treelets;
 use crate::layout::triangles::{
@@ -20,9 +21,12 @@ use crate::layout::triangles::{
 };
 use crate::layout::{LayoutError, LayoutOptions};
 use crate::lod::rlod::{Deviation, PlaneFit};
-use crate::lod::{mean_vertex_colour, shade, triangle_area, LodData, Shade};
+use crate::lod::{mean_vertex_colour, shade, triangle_area, LodData, Seen};
 use crate::raycast::{clip_to_box, Ray, Tracer};
-use oocfmt_meshio::import::{ChunkSchema, InputTriangle, Location, MeshSink, TriangleSink};
+use oocfmt::records::LodKinds;
+use oocfmt_meshio::import::{
+    ChunkSchema, InputTriangle, Location, MeshSink, PartDef, TriangleSink,
+};
 use oocfmt_meshio::mesh::{Bounds, Mesh};
 use std::collections::BTreeMap;
 
@@ -35,8 +39,16 @@ pub struct SceneFacts {
     /// Scene material index of each importer material (`None`: no material), when the scene
     /// has materials.
     pub material_index: Option<rustc_hash::FxHashMap<Option<u32>, u32>>,
+    /// Triangle block attributes, the part-id width included.
     pub attrs: u16,
     pub block_size: usize,
+    /// What the LOD entries hold, the part word included.
+    pub kinds: LodKinds,
+    /// The scene's part table (a chunk's mesh is checked against it).
+    pub parts: Vec<PartDef>,
+    /// The part of triangles the input put in none: the table's last ("(no part)", added by
+    /// the import exactly when such triangles exist); `None` without parts.
+    pub unnamed: Option<u32>,
 }
 
 impl SceneFacts {
@@ -55,6 +67,15 @@ impl SceneFacts {
         index
             .and_then(|i| self.schema.materials.as_ref()?.get(i as usize))
             .map_or([1.0; 3], |m| m.diffuse.map(f64::from))
+    }
+
+    /// A spilled triangle's scene part id, as the in-core mesh numbers it: `None` when the
+    /// scene has no part ids (fewer than two parts).
+    pub fn part(&self, t: &InputTriangle) -> Option<u32> {
+        self.schema
+            .part_ids
+            .then(|| t.part.or(self.unnamed))
+            .flatten()
     }
 }
 
@@ -104,6 +125,8 @@ pub struct ChunkOut {
     /// The R-LOD planes of the top LOD nodes above, as given, with the deviation of this
     /// chunk's part of the surface.
     pub plane_pieces: Vec<(usize, PlaneFit)>,
+    /// The chunk's primaries by part (empty in a scene without parts).
+    pub parts: Vec<(u32, PartStat)>,
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -119,12 +142,12 @@ pub struct ChunkCounts {
 }
 
 /// A ray of a top LOD node, waiting for its first hit: the segment `0 ..= t1`, the tolerance,
-/// and the nearest hit found so far.
+/// and the nearest hit found so far (its parameter, shade and part).
 pub struct PendingRay {
     pub ray: Ray,
     pub t1: f64,
     pub eps: f64,
-    pub best: Option<(f64, Shade)>,
+    pub best: Option<(f64, Seen)>,
 }
 
 /// Spills raw blocks to one file.
@@ -182,16 +205,21 @@ fn load_mesh(chunk: &Chunk, facts: &SceneFacts) -> Result<(Mesh, Vec<bool>), Ooc
             .material_index
             .as_ref()
             .map(|map| map.get(&r.triangle.material).copied().unwrap_or(0));
+        // The chunk's sink has no part table: it keeps the ids given, so the scene's
+        // "(no part)" is given here, as the in-core mesh gives it.
+        let part = facts.part(&r.triangle);
         sink.push(
             InputTriangle {
                 material,
+                part,
                 ..r.triangle
             },
             &at,
         )?;
         primary.push(r.primary);
     }
-    let (mesh, _) = sink.finish()?;
+    let (mut mesh, _) = sink.finish()?;
+    mesh.parts.clone_from(&facts.parts);
     Ok((mesh, primary))
 }
 
@@ -254,10 +282,15 @@ impl ChunkBuilder<'_> {
         }
         let mut proxies = Vec::with_capacity(plan.lod_order.len() * oocfmt::records::PROXY_LEN);
         proxy_records(&plan, &mut proxies)?;
+        let is_primary = |t: usize| primary.get(t).copied().unwrap_or(false);
         let area = (0..mesh.triangles.len())
-            .filter(|&t| primary.get(t).copied().unwrap_or(false))
+            .filter(|&t| is_primary(t))
             .map(|t| triangle_area(&mesh, t))
             .sum();
+        let part_stats = match mesh.parts.is_empty() {
+            true => Vec::new(),
+            false => parts::tally(&mesh, is_primary),
+        };
         Ok(ChunkOut {
             upper: upper_nodes(&tree, &plan, &tri_plan.leaves)?,
             treelet_blocks,
@@ -266,6 +299,7 @@ impl ChunkBuilder<'_> {
             counts,
             area,
             plane_pieces,
+            parts: part_stats,
         })
     }
 
@@ -302,7 +336,7 @@ impl ChunkBuilder<'_> {
                 lod: LodSource::Sample {
                     mesh,
                     threshold: layout.voxel_threshold,
-                    kinds: layout.write.lod,
+                    kinds: self.facts.kinds,
                 },
                 external: &external,
             },
@@ -452,7 +486,7 @@ pub(super) fn answer_rays(
             continue;
         }
         if let Some(s) = shade(mesh, &hit, r.ray.dir) {
-            r.best = Some((hit.t, s));
+            r.best = Some((hit.t, (s, parts::part_of(mesh, hit.triangle as usize))));
         }
     }
 }

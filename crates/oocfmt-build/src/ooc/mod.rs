@@ -26,6 +26,7 @@ use oocfmt::{BlockKind, Metadata, WriteSummary};
 
 use crate::kdtree::{KdBuildOptions, KdError, NodeId};
 use crate::layout::lod_params;
+use crate::layout::parts::{self, PartTotals};
 use crate::layout::plan::{plan_tree_with, LodSource, PlanSpec, Role, TreePlan};
 use crate::layout::treelets::encode_treelets;
 use crate::layout::triangles::LeafRef;
@@ -121,7 +122,8 @@ pub fn build(
     let top_raw = top.encode()?;
     let proxies = b.gather_proxies(std::mem::take(&mut chunks.proxies), &top)?;
     let (counts, stats) = b.tally(&tree, &chunks, &top);
-    let metadata = b.metadata(&counts, &top.order, proxies.len(), &stats);
+    let mut metadata = b.metadata(&counts, &top.order, proxies.len(), &stats);
+    metadata.parts = b.part_table(&chunks);
     let summary = assemble::write(
         output,
         layout.write,
@@ -130,6 +132,7 @@ pub fn build(
             top: &top_raw,
             spill: chunks.spill.path(),
             proxies: &proxies,
+            lod: b.facts.kinds,
         },
         &metadata,
         progress,
@@ -208,8 +211,11 @@ impl<'a> OocBuild<'a> {
                     .map(|(i, &m)| (m, i as u32))
                     .collect::<FxHashMap<_, _>>()
             }),
-            attrs: schema.triangle_attributes(),
+            attrs: parts::triangle_attributes(schema.triangle_attributes(), soup.parts.len()),
             block_size,
+            kinds: layout.write.lod.with_parts(soup.parts.len() >= 2),
+            parts: soup.parts.clone(),
+            unnamed: soup.parts.len().checked_sub(1).map(|p| p as u32),
         };
         Ok(OocBuild {
             soup,
@@ -228,9 +234,11 @@ impl<'a> OocBuild<'a> {
     /// split nodes that are LOD nodes on the way when the build makes R-LODs.
     fn split(&self, progress: &mut dyn Progress) -> Result<split::TopTree, OocError> {
         let colour = |t: &InputTriangle| self.facts.colour(t);
+        let part = |t: &InputTriangle| self.facts.part(t);
         let rlods = self.layout.write.lod.rlod.then_some(split::RlodMoments {
             treelet_height: self.layout.treelet_height,
             colour: &colour,
+            part: &part,
         });
         split::split(
             &self.soup.path,
@@ -313,28 +321,35 @@ impl<'a> OocBuild<'a> {
         chunks: &Chunks,
     ) -> Result<BTreeMap<usize, (LodData, Option<Rlod>)>, OocError> {
         let mut given = BTreeMap::new();
+        let kinds = self.facts.kinds;
         for t in &chunks.top_lod {
-            let area: f64 = tree
-                .chunks
-                .iter()
-                .zip(&chunks.outs)
-                .filter(|(c, _)| c.ancestors.contains(&t.node))
-                .map(|(_, o)| o.area)
-                .sum();
-            let rlod = match chunks.planes.get(&t.node) {
+            let below = || {
+                tree.chunks
+                    .iter()
+                    .zip(&chunks.outs)
+                    .filter(|(c, _)| c.ancestors.contains(&t.node))
+                    .map(|(_, o)| o)
+            };
+            let area: f64 = below().map(|o| o.area).sum();
+            let plane = chunks.planes.get(&t.node);
+            let rlod = match plane {
                 Some(p) => Some(p.record(t.cell.half_diagonal_up().unwrap_or(f32::MAX))),
-                None if self.layout.write.lod.rlod => {
+                None if kinds.rlod => {
                     return Err(LayoutError::Internal("a top LOD node has no R-LOD plane").into())
                 }
                 None => None,
             };
-            given.insert(
-                t.node,
-                (
-                    top::finish_top_lod(t, self.layout.voxel_threshold, area),
-                    rlod,
-                ),
-            );
+            // A cell no ray hit: the part of the largest area in the chunks below.
+            let fallback = match kinds.parts {
+                true => parts::largest_by_area(below().map(|o| o.parts.as_slice())),
+                false => 0,
+            };
+            let mut data = top::finish_top_lod(t, self.layout.voxel_threshold, area, fallback);
+            // R-LOD only: the part of the largest area clipped to the cell, as in core.
+            if let (false, true, Some(p)) = (kinds.voxel, kinds.parts, plane) {
+                data.part = p.part;
+            }
+            given.insert(t.node, (data, rlod));
         }
         Ok(given)
     }
@@ -366,7 +381,7 @@ impl<'a> OocBuild<'a> {
                 first_level: 0,
                 lod: LodSource::Given {
                     data: &lod_of,
-                    kinds: self.layout.write.lod,
+                    kinds: self.facts.kinds,
                 },
                 external: &external,
             },
@@ -390,6 +405,15 @@ impl<'a> OocBuild<'a> {
         }
         chunk::proxy_records(&top.plan, &mut proxies)?;
         Ok(proxies)
+    }
+
+    /// The part table: every chunk's primaries tallied by part.
+    fn part_table(&self, chunks: &Chunks) -> Vec<oocfmt::metadata::Part> {
+        let mut totals = PartTotals::new(self.soup.parts.len());
+        for o in &chunks.outs {
+            totals.add(&o.parts);
+        }
+        totals.table(&self.soup.parts)
     }
 
     /// The counts of the whole tree (the top's treelets and every chunk's) and the build's
@@ -484,6 +508,7 @@ impl<'a> OocBuild<'a> {
                 generator: layout.generator.clone(),
                 sources: layout.sources.clone(),
             },
+            parts: Vec::new(),
         }
     }
 }

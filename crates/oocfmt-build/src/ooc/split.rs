@@ -57,10 +57,16 @@ pub struct TopTree {
 pub struct RlodMoments<'a> {
     pub treelet_height: u8,
     pub colour: TriangleColour<'a>,
+    /// Each triangle's scene part id (`None` without part ids): the plane keeps the part of
+    /// the largest clipped area, an R-LOD-only entry's part word.
+    pub part: TrianglePart<'a>,
 }
 
 /// A triangle's linear RGB, as the in-core fit sees it.
 pub type TriangleColour<'a> = &'a dyn Fn(&InputTriangle) -> [f64; 3];
+
+/// A triangle's scene part id, as the in-core mesh numbers it.
+pub type TrianglePart<'a> = &'a dyn Fn(&InputTriangle) -> Option<u32>;
 
 /// Deepest median split: leaves the in-core builds room under the format's 128 levels.
 pub const MAX_SPLIT_DEPTH: u32 = 48;
@@ -94,7 +100,7 @@ pub fn split(
         let splittable = p.count > budget && p.depth < MAX_SPLIT_DEPTH && cut.inside();
         let mut moments = rlods
             .filter(|r| splittable && is_lod_depth(p.depth, r.treelet_height))
-            .map(|r| (PlaneMoments::new(p.cell), r.colour));
+            .map(|r| (PlaneMoments::new(p.cell), r));
         let halves = if splittable {
             let id = top.nodes.len();
             Some(split_file(&p, &cut, dir, id, moments.as_mut())?)
@@ -238,15 +244,17 @@ fn split_file(
     cut: &Cut,
     dir: &Path,
     id: usize,
-    mut moments: Option<&mut (PlaneMoments, TriangleColour)>,
+    mut moments: Option<&mut (PlaneMoments, &RlodMoments)>,
 ) -> Result<[(PathBuf, u64); 2], OocError> {
     let (axis, mid) = (cut.axis, cut.mid);
     let mut left = SoupWriter::create(&dir.join(format!("n{id}-l.soup")))?;
     let mut right = SoupWriter::create(&dir.join(format!("n{id}-r.soup")))?;
     for record in SoupReader::open(&p.file, p.count)? {
         let t = record?;
-        if let Some((m, colour)) = moments.as_deref_mut() {
-            m.add(t.triangle.positions, || colour(&t.triangle));
+        if let Some((m, r)) = moments.as_deref_mut() {
+            m.add(t.triangle.positions, (r.part)(&t.triangle), || {
+                (r.colour)(&t.triangle)
+            });
         }
         let part = clip_triangle(t.triangle.positions, &cut.cell);
         let (pmin, pmax) = (part.min[axis], part.max[axis]);

@@ -6,6 +6,7 @@ use oocfmt::records::Voxel;
 use super::chunk::answer_rays;
 use super::top::{finish_top_lod, record_rays, TopLod};
 use crate::kdtree::{build_cell, KdBuildOptions, KdTree, NodeId};
+use crate::layout::parts::part_of;
 use crate::lod::{sample_cell, shade, DEFAULT_VOXEL_THRESHOLD, DIAGONAL_RAYS_MAX, FACE_RAYS_MAX};
 use crate::raycast::intersect_triangle;
 use oocfmt_meshio::mesh::{Bounds, Mesh};
@@ -36,7 +37,7 @@ fn closed_box(mesh: &mut Mesh, lo: [f32; 3], size: f32, colour: [u8; 4]) {
     }
 }
 
-/// A green hull with yellow cargo inside.
+/// A green hull (part 1) with yellow cargo (part 0) inside.
 fn hull_with_cargo() -> Mesh {
     let mut mesh = Mesh {
         colours: Some(Vec::new()),
@@ -44,6 +45,11 @@ fn hull_with_cargo() -> Mesh {
     };
     closed_box(&mut mesh, [0.0; 3], 4.0, [0, 255, 0, 255]);
     closed_box(&mut mesh, [1.0, 1.5, 1.2], 1.5, [255, 255, 0, 255]);
+    mesh.part_ids = Some([[1; 12], [0; 12]].concat());
+    mesh.parts = vec![
+        oocfmt_meshio::mesh::PartDef::new("cargo", None),
+        oocfmt_meshio::mesh::PartDef::new("hull", None),
+    ];
     mesh
 }
 
@@ -52,12 +58,17 @@ fn chunk_of(mesh: &Mesh, cell: Bounds) -> (Mesh, KdTree) {
     let mut part = Mesh {
         positions: mesh.positions.clone(),
         colours: mesh.colours.clone(),
+        part_ids: mesh.part_ids.as_ref().map(|_| Vec::new()),
+        parts: mesh.parts.clone(),
         ..Mesh::default()
     };
     for t in 0..mesh.triangles.len() {
         let b = mesh.triangle_bounds(t);
         if (0..3).all(|a| b.min[a] <= cell.max[a] && b.max[a] >= cell.min[a]) {
             part.triangles.push(mesh.triangles[t]);
+            if let (Some(ids), Some(all)) = (part.part_ids.as_mut(), mesh.part_ids.as_ref()) {
+                ids.push(all[t]);
+            }
         }
     }
     let all: Vec<u32> = (0..part.triangles.len() as u32).collect();
@@ -79,25 +90,35 @@ fn sampling_in_pieces_matches_sampling_the_whole() {
     assert_eq!(rays.len(), 6 * FACE_RAYS_MAX + 12 * DIAGONAL_RAYS_MAX);
     // The reference: every triangle tested against every ray.
     let mut reference = rays.iter();
-    let whole = sample_cell(cell, DEFAULT_VOXEL_THRESHOLD, 1.0, &mut |ray, t1, eps| {
-        let r = reference.next()?;
-        assert_eq!((r.ray, r.t1), (*ray, t1));
-        let mut best: Option<crate::raycast::Hit> = None;
-        for t in 0..mesh.triangles.len() {
-            let c = mesh.corners(t)?.map(|p| p.map(f64::from));
-            if let Some((th, u, v)) = intersect_triangle(ray, c) {
-                if th >= -eps && th <= t1 + eps && best.is_none_or(|b| th < b.t) {
-                    best = Some(crate::raycast::Hit {
-                        t: th,
-                        triangle: t as u32,
-                        u,
-                        v,
-                    });
+    let whole = sample_cell(
+        cell,
+        DEFAULT_VOXEL_THRESHOLD,
+        1.0,
+        0,
+        &mut |ray, t1, eps| {
+            let r = reference.next()?;
+            assert_eq!((r.ray, r.t1), (*ray, t1));
+            let mut best: Option<crate::raycast::Hit> = None;
+            for t in 0..mesh.triangles.len() {
+                let c = mesh.corners(t)?.map(|p| p.map(f64::from));
+                if let Some((th, u, v)) = intersect_triangle(ray, c) {
+                    if th >= -eps && th <= t1 + eps && best.is_none_or(|b| th < b.t) {
+                        best = Some(crate::raycast::Hit {
+                            t: th,
+                            triangle: t as u32,
+                            u,
+                            v,
+                        });
+                    }
                 }
             }
-        }
-        shade(&mesh, &best?, ray.dir)
-    });
+            let best = best?;
+            Some((
+                shade(&mesh, &best, ray.dir)?,
+                part_of(&mesh, best.triangle as usize),
+            ))
+        },
+    );
     // In pieces: the two halves of the cell, each with the triangles reaching it.
     let (left, right) = cell.split(0, 2.0);
     for half in [left, right] {
@@ -109,9 +130,10 @@ fn sampling_in_pieces_matches_sampling_the_whole() {
         cell,
         rays,
     };
-    let pieces = finish_top_lod(&lod, DEFAULT_VOXEL_THRESHOLD, 1.0);
+    let pieces = finish_top_lod(&lod, DEFAULT_VOXEL_THRESHOLD, 1.0, 0);
     assert_eq!(pieces, whole);
-    // And it is the hull's green, not the cargo's yellow, from every side.
+    // And it is the hull's green, not the cargo's yellow, from every side; the hull's part.
+    assert_eq!(pieces.part, 1);
     let Voxel::Six(faces, _) = pieces.voxel else {
         panic!("{:?}", pieces.voxel)
     };
@@ -144,6 +166,11 @@ fn rlod_fit_in_pieces_matches_the_fit_of_the_whole() {
     }
     mesh.triangles
         .extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+    if let Some(ids) = mesh.part_ids.as_mut() {
+        ids.extend([2, 2]);
+    }
+    mesh.parts
+        .push(oocfmt_meshio::mesh::PartDef::new("sheet", None));
     let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
     let cell = mesh.bounds();
     let whole = fit(&mesh, &all, cell);
@@ -165,7 +192,7 @@ fn rlod_fit_in_pieces_matches_the_fit_of_the_whole() {
         let Some(c) = mesh.corners(t as usize) else {
             continue;
         };
-        moments.add(c, || colour(t));
+        moments.add(c, Some(part_of(&mesh, t as usize)), || colour(t));
     }
     let mut pieces = moments.plane();
     assert_eq!(pieces.deviation, 0.0);
@@ -199,6 +226,9 @@ fn rlod_fit_in_pieces_matches_the_fit_of_the_whole() {
         );
     }
     assert!(close(pieces.area, whole.area), "{pieces:?} {whole:?}");
+    // The hull's six faces are the largest area in the cell (the part word of an
+    // R-LOD-only entry).
+    assert_eq!((pieces.part, whole.part), (1, 1));
     assert!(whole.deviation > 0.5, "{whole:?}");
     assert!(
         close(pieces.deviation, whole.deviation),

@@ -60,7 +60,7 @@ pub fn top_lod_nodes(top: &TopTree, bounds: Bounds, height: u8, threshold: f32) 
 /// The rays that sample `cell`, in the order [`sample_cell`] casts them, not yet answered.
 pub fn record_rays(cell: Bounds, threshold: f32) -> Vec<PendingRay> {
     let mut rays = Vec::new();
-    sample_cell(cell, threshold, 0.0, &mut |ray, t1, eps| {
+    sample_cell(cell, threshold, 0.0, 0, &mut |ray, t1, eps| {
         rays.push(PendingRay {
             ray: *ray,
             t1,
@@ -72,10 +72,11 @@ pub fn record_rays(cell: Bounds, threshold: f32) -> Vec<PendingRay> {
     rays
 }
 
-/// The LOD data of a top LOD node from its answered rays.
-pub fn finish_top_lod(lod: &TopLod, threshold: f32, area: f64) -> LodData {
+/// The LOD data of a top LOD node from its answered rays: its part the one most face rays
+/// hit, as in core, or `fallback_part` when none hit.
+pub fn finish_top_lod(lod: &TopLod, threshold: f32, area: f64, fallback_part: u32) -> LodData {
     let mut answers = lod.rays.iter();
-    sample_cell(lod.cell, threshold, area, &mut |_, _, _| {
+    sample_cell(lod.cell, threshold, area, fallback_part, &mut |_, _, _| {
         answers.next().and_then(|r| r.best.map(|(_, s)| s))
     })
 }

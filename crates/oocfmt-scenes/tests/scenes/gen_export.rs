@@ -30,6 +30,8 @@ struct Obj {
     normals: Vec<[f32; 3]>,
     faces: Vec<Face>,
     objects: usize,
+    /// `g` lines: components of the CAD scene's assemblies.
+    groups: usize,
     mtllib: Option<String>,
 }
 
@@ -77,6 +79,7 @@ fn read_obj(path: &Path) -> Obj {
             Some("usemtl") => material = it.next().map(String::from),
             Some("mtllib") => obj.mtllib = it.next().map(String::from),
             Some("o") => obj.objects += 1,
+            Some("g") => obj.groups += 1,
             Some("#") | None => {}
             Some(other) => panic!("line {}: unexpected `{other}`", n + 1),
         }
@@ -228,6 +231,7 @@ fn the_cad_scene_has_its_parts_materials_and_overlaps() -> Res {
         triangles: 60_000,
         seed: 9,
         normals: true,
+        parts: None,
     };
     let report = cad::write_obj(&path, &opts, &mut |_, _| {})?;
     assert_eq!(report.triangles, 60_000);
@@ -237,7 +241,9 @@ fn the_cad_scene_has_its_parts_materials_and_overlaps() -> Res {
     assert_eq!(obj.faces.len(), 60_000);
     assert_eq!(obj.positions.len() as u64, report.vertices);
     assert_eq!(obj.normals.len(), obj.positions.len());
-    assert!(obj.objects > 100, "{} parts", obj.objects);
+    // Assemblies (`o`) of components (`g`), hundreds of parts in all.
+    assert!(obj.objects > 20, "{} assemblies", obj.objects);
+    assert!(obj.groups > 3 * obj.objects, "{} components", obj.groups);
     assert_eq!(obj.mtllib.as_deref(), Some("cad.mtl"));
     let mtl = read_mtl(&dir.path().join("cad.mtl"));
     let used: HashSet<&str> = obj.faces.iter().filter_map(|f| f.2.as_deref()).collect();
@@ -259,12 +265,13 @@ fn the_cad_scene_has_its_parts_materials_and_overlaps() -> Res {
         let d: f64 = (0..3).map(|a| g[a] * f64::from(obj.normals[vn][a])).sum();
         assert!(d > 0.0, "face {v:?}");
     }
-    // Coplanar overlaps: some axis-aligned plane holds faces of two different panels.
+    // Coplanar overlaps: some axis-aligned plane holds faces of two different panels (each
+    // panel is a component, a `g` under its assembly's `o`).
     let mut planes: HashMap<(usize, u32), HashSet<usize>> = HashMap::new();
     let mut object_of_face = Vec::new();
     let mut object = 0;
     for line in std::str::from_utf8(&bytes)?.lines() {
-        if line.starts_with("o ") {
+        if line.starts_with("g ") {
             object += 1;
         } else if line.starts_with("f ") {
             object_of_face.push(object);
@@ -505,6 +512,8 @@ fn read_ply(path: &Path) -> Ply {
             ["property", "ushort", "material_index"] => {
                 ply.face_props.push("material_index".into())
             }
+            // A container with parts (the `parts` vector) adds each face's part id.
+            ["property", "int", "part"] => ply.face_props.push("part".into()),
             ["end_header"] => {}
             other => panic!("unexpected header line {other:?}"),
         }
@@ -530,8 +539,12 @@ fn read_ply(path: &Path) -> Ply {
     for _ in 0..nf {
         assert_eq!(take(1)[0], 3);
         let idx = [0; 3].map(|_| u32::from_le_bytes(take(4).try_into().unwrap()) as usize);
+        let has = |p: &str| ply.face_props.iter().any(|f| f == p);
         let material =
-            (ply.face_props.len() == 2).then(|| u16::from_le_bytes(take(2).try_into().unwrap()));
+            has("material_index").then(|| u16::from_le_bytes(take(2).try_into().unwrap()));
+        if has("part") {
+            take(4);
+        }
         ply.faces.push((idx, material));
     }
     assert_eq!(pos, bytes.len(), "trailing bytes");
@@ -670,6 +683,7 @@ fn an_origin_is_added_in_f64_and_reported() -> Res {
     // Stored coordinates stay bit-exact when asked for, and the origin is noted.
     let stay = ExportOptions {
         world_coordinates: false,
+        ..ExportOptions::default()
     };
     let r = export::write_obj(&container, &out, &stay, &mut |_, _| {})?;
     assert!(r.bit_exact && r.origin == [0.0; 3]);
