@@ -312,7 +312,7 @@ fn convert_refuses_empty_missing_and_unknown_inputs() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     std::fs::write(tmp.path().join("empty.obj"), "# nothing\nv 0 0 0\n")
         .unwrap_or_else(|e| panic!("{e}"));
-    std::fs::write(tmp.path().join("model.stl"), "solid x\n").unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(tmp.path().join("model.3ds"), "solid x\n").unwrap_or_else(|e| panic!("{e}"));
     let empty = oocfmt(
         &["convert", "empty.obj", "-o", "x.oocf", "--quiet"],
         tmp.path(),
@@ -334,7 +334,7 @@ fn convert_refuses_empty_missing_and_unknown_inputs() {
     );
     assert_eq!(
         oocfmt(
-            &["convert", "model.stl", "-o", "x.oocf", "--quiet"],
+            &["convert", "model.3ds", "-o", "x.oocf", "--quiet"],
             tmp.path()
         )
         .status

@@ -1,12 +1,16 @@
 //! End-to-end tests of the `oocfmt` binary, one test binary: exit codes and outputs (`cli`),
 //! docs/cli.md against `--help` (`cli_docs`), `curve`, golden build statistics, `--recentre`,
-//! `render` and R-LODs.
+//! `render`, R-LODs, STL and PLY (`formats`), parts and `view`.
 
 mod cli;
 mod cli_docs;
 mod common;
 mod curve;
+mod formats;
 mod golden_stats;
+mod parts;
+mod parts_render;
 mod recentre;
 mod render;
 mod rlod;
+mod view;

@@ -248,6 +248,16 @@ pub fn parse_distance(s: &str) -> Result<f32, String> {
     }
 }
 
+/// A pixel `X,Y` of an image (0,0 the top left): two whole numbers; the image size is checked
+/// where the view is known.
+pub fn parse_pixel(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("`{s}`: expected a pixel X,Y of whole numbers, e.g. 512,384");
+    let (x, y) = s.split_once(',').ok_or_else(bad)?;
+    let x = x.trim().parse().map_err(|_| bad())?;
+    let y = y.trim().parse().map_err(|_| bad())?;
+    Ok((x, y))
+}
+
 /// `X,Y,Z`, finite numbers.
 pub fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
     let bad = || format!("`{s}`: expected three finite numbers X,Y,Z");
@@ -288,6 +298,10 @@ mod tests {
         assert_eq!(parse_vec3("1,-2, 3.5"), Ok([1.0, -2.0, 3.5]));
         assert!(parse_vec3("1,2").is_err());
         assert!(parse_vec3("1,2,inf").is_err());
+        assert_eq!(parse_pixel("3, 40"), Ok((3, 40)));
+        assert!(parse_pixel("3").is_err());
+        assert!(parse_pixel("-1,2").is_err());
+        assert!(parse_pixel("1,2,3").is_err());
     }
 
     #[test]

@@ -19,7 +19,7 @@ use crate::progress::Phases;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Input files (.obj, .gltf, .glb); several become one scene
+    /// Input files (.obj, .gltf, .glb, .stl, .ply); several become one scene
     #[arg(required = true)]
     pub inputs: Vec<PathBuf>,
     /// The container to write

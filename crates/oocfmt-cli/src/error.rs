@@ -114,6 +114,7 @@ impl CliError {
             C::Convert(ConvertError::Import(_) | ConvertError::OutOfCore(OocError::Import(_)))
             | C::Export(
                 ExportError::CountMismatch { .. }
+                | ExportError::PartCountMismatch { .. }
                 | ExportError::MaterialOutOfRange { .. }
                 | ExportError::TooManyVertices { .. }
                 | ExportError::Changed { .. },
@@ -151,7 +152,7 @@ mod tests {
             EXIT_USAGE
         );
         assert_eq!(
-            CliError::Convert(ConvertError::UnknownFormat("a.stl".into())).exit_code(),
+            CliError::Convert(ConvertError::UnknownFormat("a.3ds".into())).exit_code(),
             EXIT_USAGE
         );
         assert_eq!(

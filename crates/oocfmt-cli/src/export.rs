@@ -34,6 +34,7 @@ pub fn run(a: &Args) -> CliResult {
         .map(str::to_ascii_lowercase);
     let opts = ExportOptions {
         world_coordinates: !a.stored_coordinates,
+        ..ExportOptions::default()
     };
     let bar = progress::count("export", a.quiet || a.json);
     let mut tick = |done: u64, total: u64| {

@@ -1,10 +1,15 @@
-//! `oocfmt inspect`: a summary for people, or JSON for programs; one block decoded with `--block`.
+//! `oocfmt inspect`: a summary for people, or JSON for programs; one block decoded with
+//! `--block`; the part tree with `--parts` (built by [`oocfmt_trace::parts::part_tree`]).
 
 use std::fmt::Write;
 use std::path::PathBuf;
 
+use serde::Serialize;
+
+use oocfmt::metadata::Metadata;
 use oocfmt::summary::{summarize, Summary};
 use oocfmt::{ReadOptions, Reader};
+use oocfmt_trace::parts::{part_tree, preorder, PartNode};
 
 use crate::error::{to_json, CliError, CliResult};
 use crate::out::{out, outln};
@@ -23,6 +28,10 @@ pub struct Args {
     /// Print an annotated hex dump of the whole file (small files only)
     #[arg(long, conflicts_with = "block")]
     pub hexdump: bool,
+    /// Print the part tree: each part indented under its parent, with its own and its
+    /// subtree's triangle counts and bounds (with --json: schema `oocfmt-parts/1`)
+    #[arg(long, conflicts_with_all = ["block", "hexdump"])]
+    pub parts: bool,
 }
 
 pub fn run(a: &Args) -> CliResult {
@@ -31,6 +40,21 @@ pub fn run(a: &Args) -> CliResult {
         return Ok(0);
     }
     let reader = Reader::open(&a.file, ReadOptions::default())?;
+    if a.parts {
+        let m = reader.metadata();
+        if a.json {
+            let record = PartsRecord {
+                schema: "oocfmt-parts/1",
+                file: a.file.display().to_string(),
+                origin: m.scene.origin,
+                parts: part_tree(&m.parts),
+            };
+            outln!("{}", to_json(&record)?)?;
+        } else {
+            out!("{}", render_parts(m))?;
+        }
+        return Ok(0);
+    }
     if let Some(id) = a.block {
         let dump = inspect_block::dump(&reader, id)?;
         if a.json {
@@ -216,6 +240,75 @@ fn metadata(o: &mut String, s: &Summary) {
             m.provenance.sources.join(", ")
         }
     );
+}
+
+/// `inspect --parts --json`: the part table as a tree (docs/cli.md, "The parts JSON").
+#[derive(Serialize)]
+struct PartsRecord {
+    schema: &'static str,
+    file: String,
+    /// The scene origin: world = origin + the stored coordinates the bounds are in.
+    origin: [f64; 3],
+    /// In id order, parents first; empty for a file without parts.
+    parts: Vec<PartNode>,
+}
+
+/// The part tree for people: a line per part, depth first, names indented by depth, with
+/// own and subtree triangles and the subtree's bounds in world coordinates.
+pub fn render_parts(m: &Metadata) -> String {
+    let mut o = String::new();
+    if m.parts.is_empty() {
+        let _ = writeln!(
+            o,
+            "no parts: the input named none, so all {} triangles are one anonymous part",
+            m.counts.triangles
+        );
+        return o;
+    }
+    let nodes = part_tree(&m.parts);
+    let top = nodes.iter().filter(|n| n.parent.is_none()).count();
+    let deepest = nodes.iter().map(|n| n.depth).max().unwrap_or(0);
+    let _ = writeln!(
+        o,
+        "parts      {} ({top} top level, {} deep), {} triangles",
+        nodes.len(),
+        if deepest == 0 {
+            "1 level".to_string()
+        } else {
+            format!("{} levels", deepest + 1)
+        },
+        m.counts.triangles
+    );
+    let _ = writeln!(
+        o,
+        "{:>8} {:>12} {:>12}  {:<32} bounds of the subtree (world)",
+        "id", "triangles", "subtree", "name"
+    );
+    let world = |c: [f32; 3]| {
+        let w = [0, 1, 2].map(|k| m.scene.origin[k] + f64::from(c[k]));
+        format!("[{:.4}, {:.4}, {:.4}]", w[0], w[1], w[2])
+    };
+    for id in preorder(&m.parts) {
+        let Some(n) = nodes.get(id as usize) else {
+            continue;
+        };
+        let name = format!("{}{}", "  ".repeat(n.depth as usize), n.name);
+        let bounds = if n.subtree_triangles == 0 {
+            "-".to_string()
+        } else {
+            format!(
+                "{} .. {}",
+                world(n.subtree_bounds_min),
+                world(n.subtree_bounds_max)
+            )
+        };
+        let _ = writeln!(
+            o,
+            "{:>8} {:>12} {:>12}  {:<32} {bounds}",
+            n.id, n.triangles, n.subtree_triangles, name
+        );
+    }
+    o
 }
 
 pub fn invalid_block(id: u32, count: usize) -> CliError {

@@ -28,6 +28,7 @@ mod out;
 mod progress;
 mod render;
 mod verify;
+mod view;
 
 use std::process::ExitCode;
 
@@ -65,6 +66,8 @@ enum Command {
     Render(render::Args),
     /// Speed against error: render a view at a list of PoEs, compare each with full detail
     Curve(curve::Args),
+    /// Fly through a container live in the browser: a local server, its URL printed first
+    View(view::Args),
 }
 
 fn main() -> ExitCode {
@@ -85,6 +88,7 @@ fn main() -> ExitCode {
         Command::Demo(a) => demo::run(&a),
         Command::Render(a) => render::run(&a),
         Command::Curve(a) => curve::run(&a),
+        Command::View(a) => view::run(&a),
     };
     match result {
         Ok(code) => ExitCode::from(code),

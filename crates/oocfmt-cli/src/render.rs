@@ -1,6 +1,8 @@
 //! `oocfmt render`: one frame, or a walkthrough, of a container with the reference CPU ray
-//! tracer. The frames are rendered by [`oocfmt_trace::session`]; this module reads the flags,
-//! writes the images and prints the figures.
+//! tracer; or a pick of one pixel (`--pick`). The frames are rendered by
+//! [`oocfmt_trace::session`], the parts chosen by [`oocfmt_trace::parts`] and picks made by
+//! [`oocfmt_trace::pick`]; this module reads the flags, writes the images and prints the
+//! figures.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -13,6 +15,8 @@ use oocfmt_trace::cache::prefetch::DEFAULT_FRAMES_AHEAD;
 use oocfmt_trace::cache::MissingBlock;
 use oocfmt_trace::compare::median_sorted;
 use oocfmt_trace::output::{write_pfm, write_png};
+use oocfmt_trace::parts::{PartFilter, PartSelection};
+use oocfmt_trace::pick::{pick, Pick};
 use oocfmt_trace::render::{FrameStats, Image};
 use oocfmt_trace::session::{
     self, Cache, CacheKind, FrameFigures, Settled, WalkFrame, Walkthrough,
@@ -30,9 +34,9 @@ use crate::out::outln;
 pub struct Args {
     /// The container to render
     pub model: PathBuf,
-    /// The PNG to write
-    #[arg(short, long)]
-    pub output: PathBuf,
+    /// The PNG to write; may be left out with --pick, which then renders nothing
+    #[arg(short, long, required_unless_present = "pick")]
+    pub output: Option<PathBuf>,
     #[command(flatten)]
     pub view: View,
     /// Pixels of error: a ray stops on a LOD voxel whose radius is at most this many pixels;
@@ -168,6 +172,29 @@ pub struct Args {
     /// time that exceeds choosing a lower --poe for the same error on the measured scenes
     #[arg(long)]
     pub translucent: bool,
+    /// Hide the parts whose name matches GLOB (a GLOB with `/` matches paths of names from the
+    /// top: `assembly-3/bolt-*`), with everything under them; repeatable. `*` and `?` match
+    /// within a name, `**` across `/`. A GLOB that matches no part is a usage error
+    #[arg(long, value_name = "GLOB")]
+    pub hide: Vec<String>,
+    /// Show only the parts GLOB matches, with everything under them (every other part hidden);
+    /// repeatable, as --hide
+    #[arg(long, value_name = "GLOB")]
+    pub isolate: Vec<String>,
+    /// Tint the parts GLOB matches, with everything under them, half way to orange (at full
+    /// detail by each triangle's part, at a LOD entry by its part word); repeatable, as --hide
+    #[arg(long, value_name = "GLOB")]
+    pub highlight: Vec<String>,
+    /// Pick pixel X,Y (0,0 the top left) of the view at --poe: print the distance, point,
+    /// normal, triangle and part its centre ray meets first, reading any block it needs even
+    /// with the async cache; renders nothing unless --output is given too (then after the
+    /// frame). Honours --hide and --isolate
+    #[arg(long, value_name = "X,Y", value_parser = args::parse_pixel, conflicts_with = "path")]
+    pub pick: Option<(u32, u32)>,
+    /// With --pick: print the pick as JSON (schema `oocfmt-pick/1`, docs/cli.md) and nothing
+    /// else on stdout
+    #[arg(long, requires = "pick")]
+    pub json: bool,
 }
 
 pub fn run(a: &Args) -> CliResult {
@@ -194,6 +221,7 @@ pub fn run(a: &Args) -> CliResult {
         ));
     }
     let (scene, cache) = open_cache(a)?;
+    choose_parts(a, &scene)?;
     let opts = RenderOptions {
         poe: a.poe,
         spp: a.spp,
@@ -204,13 +232,100 @@ pub fn run(a: &Args) -> CliResult {
         translucent: a.translucent,
         ..RenderOptions::default()
     };
-    match path_cameras {
-        Some(cameras) => {
+    match (path_cameras, &a.output) {
+        (Some(cameras), Some(output)) => {
             let cameras = session::stored_cameras(&scene, cameras);
-            walkthrough(a, &scene, &cache, &cameras, opts, &pinned_cores)
+            walkthrough(a, output, &scene, &cache, &cameras, opts, &pinned_cores)
         }
-        None => still(a, &scene, &cache, &opts, &pinned_cores),
+        (None, Some(output)) => {
+            still(a, output, &scene, &cache, &opts, &pinned_cores)?;
+            print_pick(a, &scene, &cache)
+        }
+        // clap requires --output without --pick, and --pick conflicts with --path.
+        (_, None) => print_pick(a, &scene, &cache),
     }
+}
+
+/// `--hide`, `--isolate`, `--highlight`: resolved against the file's part table and set on
+/// the scene, so that every frame and pick follows them. A glob that matches nothing (or any
+/// glob on a file without parts) is a usage error naming the closest parts.
+fn choose_parts(a: &Args, scene: &Scene) -> Result<(), CliError> {
+    let sel = PartSelection {
+        hide: a.hide.clone(),
+        isolate: a.isolate.clone(),
+        highlight: a.highlight.clone(),
+    };
+    if sel.is_empty() {
+        return Ok(());
+    }
+    let parts = &scene.metadata().parts;
+    let filter = PartFilter::new(parts, &sel).map_err(|e| CliError::Usage(e.to_string()))?;
+    if !a.json {
+        outln!(
+            "parts: {} of {} hidden, {} highlighted",
+            filter.hidden(),
+            parts.len(),
+            filter.highlighted()
+        )?;
+    }
+    scene.set_parts(filter);
+    Ok(())
+}
+
+/// `--pick`: one ray through the pixel's centre, at --poe, printed as a line or as JSON.
+fn print_pick(a: &Args, scene: &Scene, cache: &Cache) -> CliResult {
+    let Some(at) = a.pick else {
+        return Ok(0);
+    };
+    let camera = a.view.camera(scene);
+    let found = pick(scene, cache.get(), &camera, at, a.poe)?;
+    if a.json {
+        let record = PickRecord {
+            schema: "oocfmt-pick/1",
+            pixel: [at.0, at.1],
+            poe: a.poe,
+            hit: found.as_ref(),
+        };
+        outln!("{}", to_json(&record)?)?;
+        return Ok(0);
+    }
+    outln!("{}", pick_line(at, a.poe, found.as_ref()))?;
+    Ok(0)
+}
+
+/// `render --pick --json`: what a pick found (docs/cli.md, "The pick JSON").
+#[derive(Serialize)]
+struct PickRecord<'a> {
+    schema: &'static str,
+    pixel: [u32; 2],
+    poe: f32,
+    hit: Option<&'a Pick>,
+}
+
+/// A pick as a line for people.
+fn pick_line((x, y): (u32, u32), poe: f32, p: Option<&Pick>) -> String {
+    let Some(p) = p else {
+        return format!("pick {x},{y} (--poe {poe}): nothing, the background");
+    };
+    let part = match (p.part, &p.part_name, &p.part_path) {
+        (Some(id), Some(name), Some(path)) => format!("part {id} `{name}` ({path})"),
+        (Some(id), _, _) => format!("part {id}"),
+        _ => "no part (the file has none)".to_string(),
+    };
+    let what = match p.triangle {
+        Some(t) => format!("triangle {} of block {}", t.index, t.block),
+        None => "a LOD entry (its part covers most of its cell)".to_string(),
+    };
+    let v = |c: &[f64; 3]| format!("{:.6}, {:.6}, {:.6}", c[0], c[1], c[2]);
+    let n = p.normal;
+    format!(
+        "pick {x},{y} (--poe {poe}): {part}, {what}, distance {:.6}, point {}, normal {:.4}, {:.4}, {:.4}",
+        p.distance,
+        v(&p.point),
+        n[0],
+        n[1],
+        n[2]
+    )
 }
 
 /// The scene and the cache `--cache` asks for, with the async cache's flags.
@@ -248,6 +363,7 @@ fn open_cache(a: &Args) -> Result<(Arc<Scene>, Cache), CliError> {
 /// A still view: rendered until it has what it wants, then `--repeat` more times.
 fn still(
     a: &Args,
+    output: &Path,
     scene: &Scene,
     cache: &Cache,
     opts: &RenderOptions,
@@ -260,7 +376,7 @@ fn still(
         last = session::frame(scene, cache.get(), &camera, opts)?;
     }
     let (image, stats) = (last.image, last.stats);
-    write_png(&a.output, image.width, image.height, &image.rgb)?;
+    write_png(output, image.width, image.height, &image.rgb)?;
     if let Some(d) = &a.depth_out {
         write_pfm(d, image.width, image.height, &image.depth)?;
     }
@@ -273,7 +389,16 @@ fn still(
             },
         )?;
     }
-    print_still(a, &image, &stats, settled.frames, !pinned_cores.is_empty())?;
+    if !a.json {
+        print_still(
+            a,
+            output,
+            &image,
+            &stats,
+            settled.frames,
+            !pinned_cores.is_empty(),
+        )?;
+    }
     warn_missing(&stats.cache.missing_blocks);
     Ok(0)
 }
@@ -281,6 +406,7 @@ fn still(
 /// The lines `render` prints for a still view.
 fn print_still(
     a: &Args,
+    output: &Path,
     image: &Image,
     stats: &FrameStats,
     settle_frames: u32,
@@ -289,7 +415,7 @@ fn print_still(
     let p = &stats.primary;
     outln!(
         "wrote {} ({}x{}, --poe {}): {:.1} ms, {:.2} Mrays/s on {} threads{}",
-        a.output.display(),
+        output.display(),
         image.width,
         image.height,
         stats.poe,
@@ -334,6 +460,7 @@ fn print_still(
 /// reference at the end.
 fn walkthrough(
     a: &Args,
+    output: &Path,
     scene: &Arc<Scene>,
     cache: &Cache,
     cameras: &[Camera],
@@ -346,7 +473,7 @@ fn walkthrough(
     let mut kept = Vec::new();
     for camera in cameras {
         let f = walk.frame(camera)?;
-        let file = walk::frame_file(&a.output, f.index);
+        let file = walk::frame_file(output, f.index);
         write_png(&file, f.image.width, f.image.height, &f.image.rgb)?;
         if let Some(d) = &a.depth_out {
             let dfile = walk::frame_file(d, f.index);

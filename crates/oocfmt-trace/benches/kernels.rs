@@ -163,12 +163,13 @@ fn block_decode(c: &mut Criterion, scene: &Scene) {
     };
     let treelets = largest(BlockKind::Treelet);
     let triangles = largest(BlockKind::Triangle);
-    let attrs = scene.metadata().schema.triangle_attributes();
+    let attrs = scene.metadata().triangle_attributes();
+    let parts = scene.metadata().parts.len();
     let mut g = c.benchmark_group("block decode (of the decompressed block)");
     g.throughput(Throughput::Bytes(treelets.data.len() as u64));
     g.bench_function("treelet block -> TreeletData", |b| {
         b.iter(|| {
-            TreeletData::decode(black_box(&treelets), r.entries())
+            TreeletData::decode(black_box(&treelets), r.entries(), parts)
                 .unwrap()
                 .node_count()
         })
@@ -176,7 +177,7 @@ fn block_decode(c: &mut Criterion, scene: &Scene) {
     g.throughput(Throughput::Bytes(triangles.data.len() as u64));
     g.bench_function("triangle block -> TriangleData", |b| {
         b.iter(|| {
-            TriangleData::decode(black_box(&triangles), attrs)
+            TriangleData::decode(black_box(&triangles), attrs, parts)
                 .unwrap()
                 .positions
                 .len()

@@ -3,7 +3,10 @@
 //! every reference inside the block, so the traversal indexes with `get` and never fails on a
 //! block that decoded.
 
-use oocfmt::records::triangle::{oct_decode, Vertex, ATTR_COLOURS, ATTR_MATERIALS, ATTR_NORMALS};
+use oocfmt::records::triangle::{
+    oct_decode, Vertex, ATTR_COLOURS, ATTR_MATERIALS, ATTR_NORMALS, ATTR_PART_WIDTH,
+    ATTR_PART_WIDTH_SHIFT,
+};
 use oocfmt::records::{
     lod_child_treelets, Footprint, LodEntry, Node, Sample, TreeletBlock, TriangleBlock, Voxel,
     NODE_BASIC_LEN, NO_PROXY,
@@ -211,6 +214,11 @@ pub struct TreeletData {
     /// unfiltered file, or a block of opaque flat voxels).
     feet: Vec<Footprint>,
     planes: Vec<Plane>,
+    /// Each LOD node's part word (the part covering most of its cell, spec §6.2), same index
+    /// as `lods`; empty in a file without `PART_IDS`.
+    lod_parts: Vec<u32>,
+    /// The file has exactly one part: every LOD node is of part 0.
+    one_part: bool,
     /// Node index of each treelet's root.
     pub roots: Vec<u32>,
 }
@@ -221,6 +229,10 @@ struct Links<'a> {
     directory: &'a [BlockEntry],
     level: u16,
     kind: LodKind,
+    /// Every LOD entry ends with a part word (`PART_IDS`).
+    part_words: bool,
+    /// The length of the file's part table: each part word is below it.
+    parts: usize,
 }
 
 /// A thread's working arrays for decoding blocks, kept between blocks: a fetcher decodes block
@@ -243,6 +255,7 @@ struct Scratch {
     samples: Vec<Sample>,
     feet: Vec<Footprint>,
     planes: Vec<Plane>,
+    lod_parts: Vec<u32>,
     vertices: Vec<Vertex>,
 }
 
@@ -307,6 +320,20 @@ impl Scratch {
                     child_block,
                 });
                 self.looks.push(LookAt { at, proxy });
+                if links.part_words {
+                    let part = entry.part.unwrap_or(NONE);
+                    if part as usize >= links.parts {
+                        return Err(Error::malformed(
+                            Code::PartId,
+                            format!(
+                                "LOD node {i}: part word {part} of a table of {} parts",
+                                links.parts
+                            ),
+                        )
+                        .at(pos as u64));
+                    }
+                    self.lod_parts.push(part);
+                }
                 DNode::lod(axis, split, index_within(lod, MAX_LOD, pos)?)
             }
             Node::Leaf {
@@ -356,19 +383,21 @@ impl Scratch {
         self.samples.clear();
         self.feet.clear();
         self.planes.clear();
+        self.lod_parts.clear();
     }
 }
 
 impl TreeletData {
     /// Decodes for voxels when the block's file has them, else for R-LODs. `directory` is the
-    /// file's: each LOD node's child block must be a treelet block of the next level there.
-    pub fn decode(block: &Block, directory: &[BlockEntry]) -> Result<TreeletData> {
+    /// file's: each LOD node's child block must be a treelet block of the next level there;
+    /// `parts` the length of its part table, which every part word must be below.
+    pub fn decode(block: &Block, directory: &[BlockEntry], parts: usize) -> Result<TreeletData> {
         let kind = if block.lod.voxel {
             LodKind::Voxel
         } else {
             LodKind::Rlod
         };
-        Self::decode_as(block, kind, directory)
+        Self::decode_as(block, kind, directory, parts)
     }
 
     /// Decodes the LOD nodes' `kind` (an error when the file lacks it).
@@ -376,11 +405,12 @@ impl TreeletData {
         block: &Block,
         kind: LodKind,
         directory: &[BlockEntry],
+        parts: usize,
     ) -> Result<TreeletData> {
         SCRATCH.with(|scratch| match scratch.try_borrow_mut() {
-            Ok(mut s) => Self::decode_with(block, kind, directory, &mut s),
+            Ok(mut s) => Self::decode_with(block, kind, directory, parts, &mut s),
             // Only a decode inside a decode would find it taken; none does.
-            Err(_) => Self::decode_with(block, kind, directory, &mut Scratch::default()),
+            Err(_) => Self::decode_with(block, kind, directory, parts, &mut Scratch::default()),
         })
     }
 
@@ -390,6 +420,7 @@ impl TreeletData {
         block: &Block,
         kind: LodKind,
         directory: &[BlockEntry],
+        parts: usize,
         s: &mut Scratch,
     ) -> Result<TreeletData> {
         let tb = block.treelets()?;
@@ -398,6 +429,8 @@ impl TreeletData {
             directory,
             level: block.entry.level,
             kind,
+            part_words: block.lod.parts,
+            parts,
         };
         tb.walk_lods(|_, pos, node, entry| s.push_node(&links, pos, node, entry))
             .map_err(|e| e.in_block(block.id))?;
@@ -423,6 +456,8 @@ impl TreeletData {
                 s.feet.clone()
             },
             planes: s.planes.clone(),
+            lod_parts: s.lod_parts.clone(),
+            one_part: parts == 1,
             roots,
         })
     }
@@ -497,6 +532,16 @@ impl TreeletData {
         Some((shown, (l.proxy != NO_PROXY).then_some(l.proxy)))
     }
 
+    /// The part LOD node `lod` shows most of (its part word; 0 in a file of one part), what
+    /// picking there answers; None in a file without parts.
+    #[inline]
+    pub fn lod_part(&self, lod: u32) -> Option<u32> {
+        match self.lod_parts.get(lod as usize) {
+            Some(&p) => (p != NONE).then_some(p),
+            None => self.one_part.then_some(0),
+        }
+    }
+
     /// Bytes this block holds in memory, for the cache budget.
     pub fn bytes(&self) -> usize {
         std::mem::size_of::<Self>()
@@ -507,6 +552,7 @@ impl TreeletData {
             + self.samples.capacity() * std::mem::size_of::<Sample>()
             + self.feet.capacity() * std::mem::size_of::<Footprint>()
             + self.planes.capacity() * std::mem::size_of::<Plane>()
+            + self.lod_parts.capacity() * 4
             + self.roots.capacity() * 4
     }
 
@@ -519,6 +565,7 @@ impl TreeletData {
             && self.samples.capacity() == self.samples.len()
             && self.feet.capacity() == self.feet.len()
             && self.planes.capacity() == self.planes.len()
+            && self.lod_parts.capacity() == self.lod_parts.len()
     }
 }
 
@@ -618,6 +665,8 @@ fn index_within(i: usize, max: usize, pos: usize) -> Result<u32> {
 /// A decoded triangle block.
 #[derive(Debug)]
 pub struct TriangleData {
+    /// The block's id in the file's directory (what picking reports).
+    pub block: u32,
     /// Triangle index by list entry, each < the triangle count.
     pub list: Vec<u16>,
     /// Each triangle's three corners, in stored coordinates (world = the scene origin + these).
@@ -628,16 +677,79 @@ pub struct TriangleData {
     pub colours: Option<Vec<[[f32; 3]; 3]>>,
     /// Each triangle's material index, when the scene has materials.
     pub materials: Option<Vec<u16>>,
+    /// Each triangle's part, at the width the file stores.
+    parts: PartIds,
+    /// The distinct parts of the block's triangles, ascending: what a part filter makes of the
+    /// whole block is decided from these ([`crate::parts::PartFilter::block_mask`]).
+    present: Vec<u32>,
+}
+
+/// The part id of each triangle of a block, kept at the file's width (a scene of at most 256
+/// parts pays a byte per triangle).
+#[derive(Debug)]
+enum PartIds {
+    /// The file has no parts.
+    None,
+    /// The file has one part: every triangle is of part 0, and no id is stored.
+    One,
+    U8(Vec<u8>),
+    U16(Vec<u16>),
+    U32(Vec<u32>),
+}
+
+impl PartIds {
+    /// Ids for `n` triangles of a block whose attributes carry `width` (spec §8), in a file of
+    /// `parts` parts.
+    fn with_capacity(width: u16, n: usize, parts: usize) -> PartIds {
+        match width {
+            0 if parts == 1 => PartIds::One,
+            0 => PartIds::None,
+            1 => PartIds::U8(Vec::with_capacity(n)),
+            2 => PartIds::U16(Vec::with_capacity(n)),
+            _ => PartIds::U32(Vec::with_capacity(n)),
+        }
+    }
+
+    /// Appends `id` (already checked against the table); the width held it when it was written.
+    fn push(&mut self, id: u32) {
+        match self {
+            PartIds::None | PartIds::One => {}
+            PartIds::U8(v) => v.push(id as u8),
+            PartIds::U16(v) => v.push(id as u16),
+            PartIds::U32(v) => v.push(id),
+        }
+    }
+
+    #[inline(always)]
+    fn get(&self, i: usize) -> Option<u32> {
+        match self {
+            PartIds::None => None,
+            PartIds::One => Some(0),
+            PartIds::U8(v) => v.get(i).map(|&p| u32::from(p)),
+            PartIds::U16(v) => v.get(i).map(|&p| u32::from(p)),
+            PartIds::U32(v) => v.get(i).copied(),
+        }
+    }
+
+    fn bytes(&self) -> usize {
+        match self {
+            PartIds::None | PartIds::One => 0,
+            PartIds::U8(v) => v.capacity(),
+            PartIds::U16(v) => v.capacity() * 2,
+            PartIds::U32(v) => v.capacity() * 4,
+        }
+    }
 }
 
 impl TriangleData {
-    /// Decodes and checks `block`, whose attribute bits must equal `attrs` (the metadata
-    /// schema's).
-    pub fn decode(block: &Block, attrs: u16) -> Result<TriangleData> {
+    /// Decodes and checks `block`, whose attribute bits must equal `attrs` (the metadata's,
+    /// [`oocfmt::Metadata::triangle_attributes`]) in a file of `parts` parts: every part id
+    /// must be below it (`PART_ID`).
+    pub fn decode(block: &Block, attrs: u16, parts: usize) -> Result<TriangleData> {
         SCRATCH.with(|scratch| match scratch.try_borrow_mut() {
-            Ok(mut s) => Self::decode_with(block, attrs, &mut s.vertices),
+            Ok(mut s) => Self::decode_with(block, attrs, parts, &mut s.vertices),
             // Only a decode inside a decode would find it taken; none does.
-            Err(_) => Self::decode_with(block, attrs, &mut Vec::new()),
+            Err(_) => Self::decode_with(block, attrs, parts, &mut Vec::new()),
         })
     }
 
@@ -645,7 +757,12 @@ impl TriangleData {
     /// every index (the list entries among them) and position. A fetcher decodes block after
     /// block, and on the 100M-triangle Mandelbulb this takes 0.55 of the time a `Result` per
     /// field read took (README).
-    fn decode_with(block: &Block, attrs: u16, vertices: &mut Vec<Vertex>) -> Result<TriangleData> {
+    fn decode_with(
+        block: &Block,
+        attrs: u16,
+        parts: usize,
+        vertices: &mut Vec<Vertex>,
+    ) -> Result<TriangleData> {
         let tb: TriangleBlock<'_> = block.triangles(attrs)?;
         tb.check_contents().map_err(|e| e.in_block(block.id))?;
         vertices.clear();
@@ -660,6 +777,9 @@ impl TriangleData {
         let mut normals = has(ATTR_NORMALS).then(|| Vec::with_capacity(n));
         let mut colours = has(ATTR_COLOURS).then(|| Vec::with_capacity(n));
         let mut materials = has(ATTR_MATERIALS).then(|| Vec::with_capacity(n));
+        let width = (tb.attributes() & ATTR_PART_WIDTH) >> ATTR_PART_WIDTH_SHIFT;
+        let mut ids = PartIds::with_capacity(width, n, parts);
+        let mut present = Vec::new();
         for (i, t) in tb.all_triangles().enumerate() {
             let corner = |k: usize| {
                 vertices.get(usize::from(t.v[k])).ok_or_else(|| {
@@ -684,14 +804,49 @@ impl TriangleData {
             if let (Some(ms), Some(m)) = (materials.as_mut(), t.material) {
                 ms.push(m);
             }
+            if let Some(p) = t.part {
+                if p as usize >= parts {
+                    return Err(Error::malformed(
+                        Code::PartId,
+                        format!("triangle {i}: part {p} of a table of {parts} parts"),
+                    )
+                    .in_block(block.id));
+                }
+                ids.push(p);
+                // Triangles come in runs of one part: most repeats end here.
+                if present.last() != Some(&p) {
+                    present.push(p);
+                }
+            }
         }
+        if let PartIds::One = ids {
+            present.push(0);
+        }
+        present.sort_unstable();
+        present.dedup();
+        present.shrink_to_fit();
         Ok(TriangleData {
+            block: block.id,
             list,
             positions,
             normals,
             colours,
             materials,
+            parts: ids,
+            present,
         })
+    }
+
+    /// Triangle `triangle`'s part (0 in a file of one part); None in a file without parts or
+    /// past the block.
+    #[inline(always)]
+    pub fn part(&self, triangle: u32) -> Option<u32> {
+        self.parts.get(triangle as usize)
+    }
+
+    /// The distinct parts of the block's triangles, ascending (empty without parts).
+    pub fn parts_present(&self) -> &[u32] {
+        &self.present
     }
 
     /// Bytes this block holds in memory, for the cache budget.
@@ -702,6 +857,8 @@ impl TriangleData {
             + self.normals.as_ref().map_or(0, |v| v.capacity() * 36)
             + self.colours.as_ref().map_or(0, |v| v.capacity() * 36)
             + self.materials.as_ref().map_or(0, |v| v.capacity() * 2)
+            + self.parts.bytes()
+            + self.present.capacity() * 4
     }
 }
 
@@ -739,6 +896,8 @@ mod tests {
             samples: Vec::new(),
             feet: Vec::new(),
             planes: Vec::new(),
+            lod_parts: Vec::new(),
+            one_part: false,
             roots: Vec::new(),
         };
         let views: Vec<NodeView> = d.nodes().collect();

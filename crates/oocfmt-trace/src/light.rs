@@ -16,6 +16,7 @@
 use crate::cache::BlockCache;
 use crate::camera::Frame;
 use crate::intersect::{ray_box, Ray};
+use crate::parts::PartFilter;
 use crate::scene::Scene;
 use crate::spawn::Origin;
 use crate::traverse::{Hit, Memo, Surface, Tracer};
@@ -69,6 +70,8 @@ pub struct Shadows<'a> {
     pixel_c: f32,
     lo: [f32; 3],
     hi: [f32; 3],
+    /// Hidden parts cast no shadow ([`Shadows::with_parts`]).
+    parts: Option<&'a PartFilter>,
 }
 
 impl<'a> Shadows<'a> {
@@ -87,7 +90,14 @@ impl<'a> Shadows<'a> {
             pixel_c,
             lo: m.scene.bounds_min,
             hi: m.scene.bounds_max,
+            parts: None,
         }
+    }
+
+    /// Shadow rays that pass the parts `filter` hides ([`Tracer::with_parts`]).
+    pub fn with_parts(mut self, filter: &'a PartFilter) -> Shadows<'a> {
+        self.parts = Some(filter);
+        self
     }
 
     /// The light's position, in stored coordinates.
@@ -110,6 +120,10 @@ impl<'a> Shadows<'a> {
         let exit = ray_box(&ray, self.lo, self.hi, 0.0, 0.0, dist).map_or(0.0, |b| b.1);
         let k = shadow_lod_c(self.pixel_c, t_primary, dist, exit);
         let tracer = Tracer::new(self.scene, self.cache, k);
+        let tracer = match self.parts {
+            Some(f) => tracer.with_parts(f),
+            None => tracer,
+        };
         !tracer
             .trace_to(&ray, dist, memo)
             .is_some_and(|h| occludes(&h))

@@ -9,6 +9,7 @@ use rustc_hash::FxHashMap as HashMap;
 
 use crate::blocks::{TreeletData, TriangleData};
 use crate::cache::{BlockCache, Wish};
+use crate::parts::{BlockMask, PartFilter};
 use crate::scene::Scene;
 
 /// A block as one group of rays (a tile) saw it.
@@ -37,6 +38,15 @@ pub struct Memo {
     defer_key: Cell<Option<u32>>,
     /// Deferred wants: key, block, radius, distance; in the order the rays made them.
     deferred: RefCell<Vec<(u32, u32, f32, f32)>>,
+    /// The visible entries of a leaf of a block that a part filter hides part of, rebuilt
+    /// for each such leaf (kept to spare an allocation per leaf).
+    pub(crate) visible: RefCell<Vec<u16>>,
+    /// By block id, what the part filter `mask_for` makes of each triangle block looked up
+    /// under it ([`Memo::masked`]): 0 not yet, else 1 + the index of its [`BlockMask`]. Made
+    /// the first time a ray under a filter asks, so a memo that never sees one pays nothing.
+    masks: OnceCell<Vec<Cell<u8>>>,
+    /// The id of the filter `masks` are for.
+    mask_for: Cell<u64>,
     /// How many of `deferred` (sorted by key) have been released.
     released: Cell<usize>,
 }
@@ -93,6 +103,9 @@ impl Memo {
             defer_key: Cell::new(None),
             deferred: RefCell::default(),
             released: Cell::new(0),
+            visible: RefCell::default(),
+            masks: OnceCell::new(),
+            mask_for: Cell::new(0),
         }
     }
 
@@ -121,9 +134,13 @@ impl Memo {
     /// Forgets the blocks looked up so far (the next tile asks the cache again) and the
     /// unflushed requests.
     pub fn clear(&mut self) {
+        let masks = self.masks.get();
         for id in self.touched.get_mut().drain(..) {
             if let Some(slot) = self.slots.get_mut(id as usize) {
                 slot.take();
+            }
+            if let Some(m) = masks.and_then(|m| m.get(id as usize)) {
+                m.set(0);
             }
         }
         self.wanted.get_mut().clear();
@@ -230,6 +247,42 @@ impl Memo {
             Slot::Triangles(d) => Some(d),
             _ => None,
         }
+    }
+
+    /// Triangle block `id` and what `filter` makes of it, worked out from the block's parts
+    /// once per tile (the slot is cleared with the tile) and per filter.
+    pub(crate) fn masked(
+        &self,
+        cache: &dyn BlockCache,
+        id: u32,
+        filter: &PartFilter,
+    ) -> Option<(&Arc<TriangleData>, BlockMask)> {
+        const MASKS: [BlockMask; 3] = [
+            BlockMask::NoneHidden,
+            BlockMask::AllHidden,
+            BlockMask::Mixed,
+        ];
+        let d = self.triangles(cache, id)?;
+        let masks = self
+            .masks
+            .get_or_init(|| (0..self.slots.len()).map(|_| Cell::new(0)).collect());
+        if self.mask_for.replace(filter.id()) != filter.id() {
+            // Another filter than the one these were worked out for (a pooled memo's new
+            // frame): rare, and one pass.
+            masks.iter().for_each(|m| m.set(0));
+        }
+        let cell = masks.get(id as usize)?;
+        if let Some(&m) = cell
+            .get()
+            .checked_sub(1)
+            .and_then(|i| MASKS.get(usize::from(i)))
+        {
+            return Some((d, m));
+        }
+        let m = filter.block_mask(d.parts_present());
+        let at = MASKS.iter().position(|&x| x == m).unwrap_or(0);
+        cell.set(at as u8 + 1);
+        Some((d, m))
     }
 }
 

@@ -12,6 +12,7 @@
 use crate::cache::BlockCache;
 use crate::intersect::Ray;
 use crate::light::occludes;
+use crate::parts::PartFilter;
 use crate::sampling::{cosine_hemisphere, point};
 use crate::scene::Scene;
 use crate::spawn::Origin;
@@ -62,6 +63,12 @@ impl<'a> Occlusion<'a> {
             rays,
             distance,
         }
+    }
+
+    /// Occlusion rays that pass the parts `filter` hides ([`Tracer::with_parts`]).
+    pub fn with_parts(mut self, filter: &'a PartFilter) -> Occlusion<'a> {
+        self.tracer = self.tracer.with_parts(filter);
+        self
     }
 
     /// AO rays traced per shaded hit, at least 1.

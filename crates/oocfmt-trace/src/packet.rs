@@ -15,6 +15,10 @@
 //! same, bit for bit, and so is the count of nodes visited. The blocks the rays wanted and did
 //! not get are logged under each ray's key ([`Memo::release_deferred`]), so that the caller can
 //! replay them in the single-ray order. Rays that cannot form a packet are traced alone.
+//!
+//! Under a part filter each ray asks the filter's grid at the nodes where it asks alone, with
+//! its own interval, and leaves the packet's path where its stretch meets no visible part's
+//! box ([`Tracer::with_parts`]), so this too is as alone.
 
 // Lane loops index several arrays by the same lane, which is what the compiler vectorizes.
 #![allow(clippy::needless_range_loop)]
@@ -26,7 +30,11 @@ use oocfmt::records::MAX_TREE_DEPTH;
 use crate::blocks::{NodeView, TreeletData, NONE};
 use crate::intersect::{ray_box, Ray};
 use crate::lanes::RayLanes;
-use crate::traverse::{clamp_mid, opaque, proxy_sample, push_last, shown, Best, Hit, Memo, Tracer};
+use crate::parts::{BlockMask, Cover, VisibilityGrid};
+use crate::traverse::{
+    clamp_mid, grid_due, opaque, proxy_sample, push_last, shown, visible_entries, Best, Hit, Memo,
+    Tracer, NO_GRID,
+};
 
 /// Which rays of a packet (bit i: ray i).
 type Mask = u32;
@@ -42,6 +50,10 @@ struct Entry<'m, const N: usize> {
     lods: u8,
     active: Mask,
     check: Mask,
+    /// Nodes on the path before the part filter's grid is asked again (as alone).
+    due: u8,
+    /// The rays for which the grid need not be asked below (as alone).
+    full: Mask,
     t0: [f32; N],
     t1: [f32; N],
 }
@@ -57,6 +69,8 @@ impl<'m, const N: usize> Entry<'m, N> {
             lods,
             active: far.active,
             check,
+            due: far.due,
+            full: far.full,
             t0: far.t0,
             t1: far.t1,
         }
@@ -138,6 +152,11 @@ struct At<'m, const N: usize> {
     data: &'m TreeletData,
     node: u32,
     active: Mask,
+    /// Nodes on the path before the part filter's grid is asked again ([`grid_due`]).
+    due: u8,
+    /// The rays whose stretch in an ancestor's cell the grid found full of visible parts'
+    /// cells ([`Cover::Full`]): they are not asked again below.
+    full: Mask,
     t0: [f32; N],
     t1: [f32; N],
 }
@@ -157,6 +176,8 @@ impl<'m, const N: usize> At<'m, N> {
             data: e.data,
             node: e.node,
             active,
+            due: e.due,
+            full: e.full,
             t0: e.t0,
             t1: e.t1,
         })
@@ -212,6 +233,8 @@ impl<'m, const N: usize> At<'m, N> {
                     data,
                     node: second,
                     active: s.after,
+                    due: self.due,
+                    full: self.full,
                     t0: s.mid,
                     t1: self.t1,
                 });
@@ -240,6 +263,30 @@ fn rays_in<const N: usize>(m: Mask) -> u64 {
     (0..N.div_ceil(4)).fold(0, |n, k| n + (NIBBLES >> (4 * (m >> (4 * k) & 15)) & 15))
 }
 
+/// Drops from `at` the rays whose stretch in its cell meets no visible part's box in `grid`,
+/// and marks as full those whose stretch the grid finds full ([`Cover::Full`]): the decision
+/// each ray not full yet makes alone ([`VisibilityGrid::cover_segment`] with its tolerance
+/// `eps`). (Asking once for the box around all the stretches first saved nothing on the CAD
+/// scene: near visible parts the rays mostly need their own answers.)
+#[inline(always)]
+fn showing<const N: usize>(
+    grid: &VisibilityGrid,
+    rays: &[Ray; N],
+    at: &mut At<'_, N>,
+    eps: &[f32; N],
+) {
+    let ask = at.active & !at.full;
+    for (i, ray) in rays.iter().enumerate() {
+        if ask >> i & 1 != 0 {
+            match grid.cover_segment(ray, at.t0[i], at.t1[i], eps[i]) {
+                Cover::None => at.active &= !(1 << i),
+                Cover::Some => {}
+                Cover::Full => at.full |= 1 << i,
+            }
+        }
+    }
+}
+
 /// The rays of `m`, in order.
 fn rays_of(m: Mask) -> impl Iterator<Item = usize> {
     (0..Mask::BITS as usize).filter(move |&i| m >> i & 1 != 0)
@@ -257,7 +304,12 @@ impl Tracer<'_> {
     ) -> [Option<Hit>; N] {
         let eps = std::array::from_fn(|i| self.ray_eps(&rays[i]));
         match (Lanes::new(rays, eps), RayLanes::new(rays)) {
-            (Some(lanes), Some(kernel)) => self.walk(rays, keys, &lanes, &kernel, memo),
+            // Two copies of the walk, as alone ([`Tracer::trace`]): without a grid, not even
+            // its branch in the node loop.
+            (Some(lanes), Some(kernel)) => match self.grid {
+                Some(g) => self.walk::<N, true>(rays, keys, &lanes, &kernel, memo, g),
+                None => self.walk::<N, false>(rays, keys, &lanes, &kernel, memo, &NO_GRID),
+            },
             _ => {
                 let mut out = [const { None }; N];
                 for ((o, ray), &key) in out.iter_mut().zip(rays).zip(keys) {
@@ -270,13 +322,15 @@ impl Tracer<'_> {
         }
     }
 
-    fn walk<'m, const N: usize>(
+    /// The packet's walk, asking `grid` where `GRID`.
+    fn walk<'m, const N: usize, const GRID: bool>(
         &self,
         rays: &[Ray; N],
         keys: &[u32; N],
         lanes: &Lanes<N>,
         kernel: &RayLanes<N>,
         memo: &'m Memo,
+        grid: &VisibilityGrid,
     ) -> [Option<Hit>; N] {
         let p = Packet {
             rays,
@@ -306,6 +360,17 @@ impl Tracer<'_> {
                 steps += 1;
                 if steps > self.max_visits {
                     break 'packet;
+                }
+                // As alone: a ray whose stretch in this cell meets no visible part's box
+                // skips the subtree.
+                if GRID {
+                    let lod = matches!(n, NodeView::Lod { .. });
+                    if grid_due(&mut at.due, lod) && at.active & !at.full != 0 {
+                        showing(grid, rays, &mut at, &lanes.eps);
+                        if at.active == 0 {
+                            break;
+                        }
+                    }
                 }
                 let (s, first, second, next) = match n {
                     NodeView::Inner {
@@ -390,6 +455,8 @@ impl Tracer<'_> {
             lods: 0,
             active: live,
             check: live,
+            due: 0,
+            full: 0,
             t0,
             t1,
         })
@@ -422,8 +489,9 @@ impl Tracer<'_> {
                 t1: at.t1,
             },
         );
+        let hidden = self.hides_lod(data, lod);
         let mut stop: Mask = 0;
-        if self.lod_c > 0.0 {
+        if self.lod_c > 0.0 && !hidden {
             for i in 0..N {
                 stop |= Mask::from(l.radius <= at.t0[i] * self.lod_c) << i;
             }
@@ -435,6 +503,14 @@ impl Tracer<'_> {
         } else {
             None
         };
+        if hidden && child.is_none() {
+            // As alone: a hidden entry stands in for nothing; each ray passes the cell.
+            for i in rays_of(at.active) {
+                w.memo
+                    .want_later(w.keys[i], l.child_block, l.radius, at.t0[i]);
+            }
+            return None;
+        }
         // The rays that end here: those that stop, and, without the child block, all of
         // them. Without the node's look they just end.
         let look = (stop != 0 || child.is_none()).then(|| data.look(lod));
@@ -446,7 +522,7 @@ impl Tracer<'_> {
                     continue;
                 }
                 let (t0, t1) = (at.t0[i], at.t1[i]);
-                let own = || shown(&look, ray, t0, t1, l.radius);
+                let own = || shown(&look, ray, t0, t1, l.radius, data.lod_part(lod));
                 let found = if stop >> i & 1 != 0 {
                     own()
                 } else {
@@ -491,11 +567,28 @@ impl Tracer<'_> {
         (first, count): (u16, u16),
         block: u32,
     ) {
-        match w.memo.triangles(self.cache, block) {
+        let (td, mask) = match self.parts {
+            None => (w.memo.triangles(self.cache, block), BlockMask::NoneHidden),
+            Some(f) => match w.memo.masked(self.cache, block, f) {
+                Some((td, mask)) => (Some(td), mask),
+                None => (None, BlockMask::NoneHidden),
+            },
+        };
+        match td {
             Some(td) => {
                 let first = usize::from(first);
                 let list = td.list.get(first..first + usize::from(count));
                 let list = list.unwrap_or(&[]);
+                let mut visible;
+                let list = match (mask, self.parts) {
+                    (BlockMask::NoneHidden, _) | (_, None) => list,
+                    (BlockMask::AllHidden, _) => &[],
+                    (BlockMask::Mixed, Some(f)) => {
+                        visible = w.memo.visible.borrow_mut();
+                        visible_entries(list, td, f, &mut visible);
+                        &visible[..]
+                    }
+                };
                 let h = w
                     .kernel
                     .nearest(at.active, list, &td.positions, &mut near.best_t);
@@ -518,10 +611,14 @@ impl Tracer<'_> {
                         Some(lv) => {
                             let (t, t1) = (lv.t[i], lv.t1[i]);
                             w.memo.want_later(w.keys[i], block, lv.radius, t);
+                            if self.hides_lod(lv.data, lv.lod) {
+                                continue;
+                            }
+                            let part = lv.data.lod_part(lv.lod);
                             let found = lv
                                 .data
                                 .look(lv.lod)
-                                .and_then(|(look, _)| shown(&look, ray, t, t1, lv.radius));
+                                .and_then(|(look, _)| shown(&look, ray, t, t1, lv.radius, part));
                             near.offer(i, opaque(found));
                         }
                         None => {

@@ -19,6 +19,7 @@ use crate::error::TraceError;
 use crate::intersect::Ray;
 use crate::light::{shoulder_light, Shadows};
 use crate::occlusion::{default_distance, Occlusion};
+use crate::parts::PartFilter;
 use crate::sampling::{hash, pixel_offset, Stream};
 use crate::scene::Scene;
 use crate::shade::{encode_srgb, Lighting, Secondary};
@@ -257,7 +258,8 @@ fn primary_hits(tracer: &Tracer<'_>, rays: &[Ray], width: usize, memo: &Memo) ->
     hits
 }
 
-/// Renders one frame of `scene` through `cache`. `camera` is in stored coordinates.
+/// Renders one frame of `scene` through `cache`. `camera` is in stored coordinates. The
+/// frame shows the parts the scene's filter shows ([`Scene::set_parts`], read once here).
 pub fn render(
     scene: &Scene,
     cache: &dyn BlockCache,
@@ -266,7 +268,8 @@ pub fn render(
 ) -> Result<(Image, FrameStats), TraceError> {
     opts.check()?;
     let frame = camera.frame()?;
-    let job = FrameJob::new(scene, cache, &frame, opts);
+    let parts = scene.parts();
+    let job = FrameJob::new(scene, cache, &frame, opts, &parts);
     let start = Instant::now();
     cache.begin_frame();
     let done: Vec<TileOut> = (0..job.tiles())
@@ -304,12 +307,14 @@ struct FrameTotals {
 
 impl<'a> FrameJob<'a> {
     /// The frame setup: the LOD constant from the pixels of error, the shadow light and the
-    /// occlusion distance (the options' or the defaults for this camera and scene).
+    /// occlusion distance (the options' or the defaults for this camera and scene), and the
+    /// part filter every tracer and the shading follow.
     fn new(
         scene: &'a Scene,
         cache: &'a dyn BlockCache,
         frame: &'a Frame,
         opts: &'a RenderOptions,
+        parts: &'a PartFilter,
     ) -> FrameJob<'a> {
         let lod_c = f64::from(opts.poe) * frame.pixel_angle();
         let m = scene.metadata();
@@ -318,20 +323,20 @@ impl<'a> FrameJob<'a> {
             let light = opts
                 .light
                 .unwrap_or_else(|| shoulder_light(frame, bounds.0, bounds.1));
-            Shadows::new(scene, cache, light.map(|c| c as f32), lod_c as f32)
+            Shadows::new(scene, cache, light.map(|c| c as f32), lod_c as f32).with_parts(parts)
         });
         let occlusion = (opts.ao > 0).then(|| {
             let distance = opts
                 .ao_distance
                 .unwrap_or_else(|| default_distance(bounds.0, bounds.1));
-            Occlusion::new(scene, cache, opts.ao, distance, opts.poe > 0.0)
+            Occlusion::new(scene, cache, opts.ao, distance, opts.poe > 0.0).with_parts(parts)
         });
         FrameJob {
             frame,
             opts,
             cache,
-            tracer: Tracer::new(scene, cache, lod_c as f32),
-            lighting: Lighting::new(&m.materials, shadows, occlusion, bounds),
+            tracer: Tracer::new(scene, cache, lod_c as f32).with_parts(parts),
+            lighting: Lighting::new(&m.materials, shadows, occlusion, bounds).with_parts(parts),
             lod_c,
             tiles_x: frame.width().div_ceil(TILE),
             background: opts.background.map(encode_srgb),

@@ -1,6 +1,7 @@
 //! An open container: the reader, its metadata and the resident proxies.
 
 use std::path::Path;
+use std::sync::{Arc, RwLock};
 
 use oocfmt::metadata::Metadata;
 use oocfmt::records::ProxyRecord;
@@ -8,12 +9,18 @@ use oocfmt::{BlockKind, ReadOptions, Reader};
 
 use crate::blocks::{LodKind, TreeletData, TriangleData};
 use crate::error::TraceError;
+use crate::parts::PartFilter;
 
-/// An open container ready to trace: its reader (metadata, directory, proxies resident) and
-/// the LOD kind the traversal stops on. Shared by the caches and the render threads.
+/// An open container ready to trace: its reader (metadata, directory, proxies resident), the
+/// LOD kind the traversal stops on, and which parts it shows. Shared by the caches and the
+/// render threads.
 pub struct Scene {
     reader: Reader,
     attrs: u16,
+    /// The length of the part table (part ids are checked against it at decode).
+    part_count: usize,
+    /// See [`Scene::set_parts`].
+    parts: RwLock<Arc<PartFilter>>,
     /// The LOD representation the traversal stops on.
     lod: LodKind,
     /// See [`Scene::node_bound`].
@@ -32,7 +39,8 @@ impl Scene {
 
     /// A scene that stops on voxels when the file has them, else on R-LODs.
     pub fn from_reader(reader: Reader) -> Scene {
-        let attrs = reader.metadata().schema.triangle_attributes();
+        let attrs = reader.metadata().triangle_attributes();
+        let part_count = reader.metadata().parts.len();
         let lod = if reader.lod_kinds().voxel {
             LodKind::Voxel
         } else {
@@ -47,6 +55,8 @@ impl Scene {
         Scene {
             reader,
             attrs,
+            part_count,
+            parts: RwLock::new(Arc::new(PartFilter::none())),
             lod,
             node_bound,
         }
@@ -84,6 +94,21 @@ impl Scene {
         self.lod
     }
 
+    /// Which parts frames show from now on (hidden, highlighted; [`crate::parts`]): made for
+    /// this file's part table ([`PartFilter::new`] of [`Scene::metadata`]'s parts). A frame
+    /// reads it once, at its start, and every ray of the frame (primary, shadow, occlusion)
+    /// and every pick honours it; a frame already running keeps the filter it started with.
+    pub fn set_parts(&self, filter: PartFilter) {
+        let mut at = self.parts.write().unwrap_or_else(|e| e.into_inner());
+        *at = Arc::new(filter);
+    }
+
+    /// The part filter frames use now ([`Scene::set_parts`]; none at open).
+    pub fn parts(&self) -> Arc<PartFilter> {
+        let at = self.parts.read().unwrap_or_else(|e| e.into_inner());
+        Arc::clone(&at)
+    }
+
     /// The container's metadata: the scene's bounds and origin, the schema, the root.
     pub fn metadata(&self) -> &Metadata {
         self.reader.metadata()
@@ -110,11 +135,12 @@ impl Scene {
             &self.reader.read_block(id)?,
             self.lod,
             self.reader.entries(),
+            self.part_count,
         )
     }
 
     /// Reads, checks and decodes triangle block `id`.
     pub fn load_triangles(&self, id: u32) -> oocfmt::Result<TriangleData> {
-        TriangleData::decode(&self.reader.read_block(id)?, self.attrs)
+        TriangleData::decode(&self.reader.read_block(id)?, self.attrs, self.part_count)
     }
 }

@@ -11,6 +11,7 @@ use oocfmt::metadata::Material;
 use crate::intersect::Ray;
 use crate::light::{unit_towards, Shadows};
 use crate::occlusion::Occlusion;
+use crate::parts::{tint, PartFilter};
 use crate::spawn::{triangle_normal, Origin};
 use crate::traverse::{Hit, Memo, Surface};
 
@@ -26,6 +27,11 @@ pub const AO_AMBIENT: f32 = 0.35;
 /// footprint's mean shade.
 pub fn shade(hit: &Hit, ray: &Ray, materials: &[Material]) -> [f32; 3] {
     let (albedo, normal) = attributes(hit, materials);
+    headlight(hit, ray, albedo, normal)
+}
+
+/// [`shade`] of a hit whose albedo and (not normalised) shading normal are given.
+fn headlight(hit: &Hit, ray: &Ray, albedo: [f32; 3], normal: [f32; 3]) -> [f32; 3] {
     let len = dot(normal, normal).sqrt();
     let cos = if len > 0.0 && len.is_finite() {
         (dot(normal, ray.dir) / len).abs().min(1.0)
@@ -103,6 +109,8 @@ pub struct Lighting<'a> {
     occlusion: Option<Occlusion<'a>>,
     /// The largest coordinate of the scene's box (for the origins of rays leaving voxels).
     scale: f32,
+    /// The part filter, when it highlights a part ([`Lighting::with_parts`]).
+    highlight: Option<&'a PartFilter>,
 }
 
 impl<'a> Lighting<'a> {
@@ -125,6 +133,24 @@ impl<'a> Lighting<'a> {
             shadows,
             occlusion,
             scale,
+            highlight: None,
+        }
+    }
+
+    /// Shading that tints the parts `filter` highlights ([`crate::parts::tint`]): a triangle
+    /// by its own part, a LOD entry by its part word. (Hidden parts are the tracers'.)
+    pub fn with_parts(mut self, filter: &'a PartFilter) -> Lighting<'a> {
+        self.highlight = (filter.highlighted() > 0).then_some(filter);
+        self
+    }
+
+    /// The albedo and shading normal of `hit` ([`attributes`]), tinted where highlighted.
+    #[inline]
+    fn attributes(&self, hit: &Hit) -> ([f32; 3], [f32; 3]) {
+        let (albedo, normal) = attributes(hit, self.materials);
+        match self.highlight {
+            Some(f) if f.highlights(hit.part) => (tint(albedo), normal),
+            _ => (albedo, normal),
         }
     }
 
@@ -144,9 +170,10 @@ impl<'a> Lighting<'a> {
         counts: &mut Secondary,
     ) -> [f32; 3] {
         if self.is_headlight() {
-            return shade(hit, ray, self.materials);
+            let (albedo, normal) = self.attributes(hit);
+            return headlight(hit, ray, albedo, normal);
         }
-        let (albedo, normal) = attributes(hit, self.materials);
+        let (albedo, normal) = self.attributes(hit);
         let at = self.point(hit, ray, normal);
         let direct = self.direct_from(hit, ray, &at, memo, counts);
         let (ambient, open) = match &self.occlusion {

@@ -21,6 +21,9 @@
 //!   rounding puts on the wrong side of a split plane is still found: at worst a few extra
 //!   leaves are visited. The same kernel tests the same triangles, so the nearest distance is
 //!   exactly the brute-force one.
+//! - With a part filter that hides a part ([`Tracer::with_parts`]) a subtree whose stretch of
+//!   the ray meets no visible part's box is skipped whole, asked at each LOD node and at least
+//!   every third node of a path (`GRID_EVERY`; [`crate::parts::VisibilityGrid`]).
 //! - A direction component of ±0 (or one whose reciprocal overflows) makes the ray parallel to
 //!   the split plane: it visits the side its origin lies on, both sides when the origin lies on
 //!   the plane. No 0 × inf product is formed.
@@ -35,6 +38,7 @@ use oocfmt::records::{Footprint, Sample, Voxel, MAX_TREE_DEPTH, PROXY_DIRECTIONS
 use crate::blocks::{NodeView, Plane, Shown, TreeletData, TriangleData, NONE};
 use crate::cache::BlockCache;
 use crate::intersect::{major_axis, ray_box, Ray};
+use crate::parts::{BlockMask, Cover, PartFilter, VisibilityGrid};
 use crate::scene::Scene;
 
 /// Re-exported: the traversal is where a memo is used.
@@ -89,6 +93,9 @@ pub struct Hit {
     /// α, the share of what the ray shows that is this surface (spec §5.1): below 1 what lies
     /// behind shows through ([`Tracer::trace_layers`]). 1 for a triangle.
     pub coverage: f32,
+    /// The part the surface is of: a triangle's own part, a LOD entry's part word (the part
+    /// covering most of its cell); None for a proxy and in a file without parts.
+    pub part: Option<u32>,
 }
 
 impl Hit {
@@ -115,23 +122,26 @@ impl LastVoxel<'_> {
     /// hit (None when the plane is missed).
     fn shown(&self, ray: &Ray) -> Option<(f32, Best<'static>)> {
         let (look, _) = self.data.look(self.lod)?;
-        shown(&look, ray, self.t, self.t1, self.radius)
+        let part = self.data.lod_part(self.lod);
+        shown(&look, ray, self.t, self.t1, self.radius, part)
     }
 }
 
-/// What a LOD node showing `shown` gives a ray crossing its cell in [t0, t1], and where; None
-/// when a plane is missed.
+/// What a LOD node of part word `part` showing `shown` gives a ray crossing its cell in
+/// [t0, t1], and where; None when a plane is missed.
 pub(crate) fn shown(
     shown: &Shown,
     ray: &Ray,
     t0: f32,
     t1: f32,
     radius: f32,
+    part: Option<u32>,
 ) -> Option<(f32, Best<'static>)> {
+    let part = part.unwrap_or(NONE);
     match shown {
         Shown::Voxel(v) => {
             let look = voxel_look(v, ray);
-            Some((t0, Best::Voxel { look, radius }))
+            Some((t0, Best::Voxel { look, radius, part }))
         }
         Shown::Plane(p) => plane_hit(p, ray, t0, t1).map(|t| {
             (
@@ -142,6 +152,7 @@ pub(crate) fn shown(
                     radius,
                     coverage: p.coverage,
                     shade: p.shade,
+                    part,
                 },
             )
         }),
@@ -175,6 +186,12 @@ struct Entry<'m> {
     t0: f32,
     t1: f32,
     lods: u8,
+    /// Nodes on the path before the part filter's grid is asked again ([`grid_due`]).
+    due: u8,
+    /// Every grid cell around the ray's stretch in an ancestor's cell is near a visible part
+    /// ([`Cover::Full`]), so is every one around this stretch, which lies inside it: the grid
+    /// need not be asked again below.
+    full: bool,
 }
 
 /// The LOD nodes on the path to the node being visited, outermost first.
@@ -253,6 +270,29 @@ pub const MAX_LAYERS: usize = 16;
 /// more than they change (`docs/notes/2026-12-02-prefiltered-lod.md`).
 pub const MIN_TRANSMITTANCE: f32 = 1.0 / 32.0;
 
+/// The grid the walk without one is handed and never asks.
+pub(crate) static NO_GRID: VisibilityGrid = VisibilityGrid::EMPTY;
+
+/// How many nodes down a path the part filter's grid is asked at least once, besides at every
+/// LOD node: often enough to cut a hidden subtree within a few levels, rarely enough that the
+/// question (some 50 instructions) does not cost more than the nodes it saves.
+pub(crate) const GRID_EVERY: u8 = 3;
+
+/// Whether the node about to be visited asks the grid ([`GRID_EVERY`]): each LOD node (where
+/// skipping also spares the child block's look-up) and at least every `GRID_EVERY`-th node of
+/// a path. `due` counts the nodes still to pass, carried down the path and onto the stack, so
+/// the answer depends on the path alone: a ray in a packet asks where it asks alone.
+#[inline(always)]
+pub(crate) fn grid_due(due: &mut u8, lod: bool) -> bool {
+    if *due == 0 || lod {
+        *due = GRID_EVERY - 1;
+        true
+    } else {
+        *due -= 1;
+        false
+    }
+}
+
 /// Makes `lv` the last voxel of the path (dropping the outermost when a corrupt tree is deeper
 /// than any path can be) and returns the count to store in entries below it.
 pub(crate) fn push_last<T, const CAP: usize>(lasts: &mut ArrayVec<T, CAP>, lv: T) -> u8 {
@@ -272,10 +312,11 @@ pub(crate) enum Best<'m> {
         triangle: u32,
         bary: [f32; 3],
     },
-    /// What a voxel shows the ray and the radius of its cell.
+    /// What a voxel shows the ray, the radius of its cell and its part word ([`NONE`]: none).
     Voxel {
         look: VoxelLook,
         radius: f32,
+        part: u32,
     },
     /// A proxy's sample and the radius of its node's cell.
     Proxy(Sample, f32),
@@ -285,6 +326,7 @@ pub(crate) enum Best<'m> {
         radius: f32,
         coverage: f32,
         shade: f32,
+        part: u32,
     },
 }
 
@@ -303,6 +345,13 @@ pub struct Tracer<'a> {
     /// The most nodes a ray (or a packet) visits: as many as the file's treelet blocks can
     /// hold ([`Scene::node_bound`]). A well-formed tree never reaches it.
     pub(crate) max_visits: u64,
+    /// The part filter, when it hides a part ([`Tracer::with_parts`]); None costs the hot
+    /// loop one branch per leaf and per LOD node.
+    pub(crate) parts: Option<&'a PartFilter>,
+    /// The filter's grid of visible parts' boxes, when it hides a part: a node whose stretch of
+    /// the ray meets none of them is skipped whole. None: the walks run their copy without
+    /// the question, which costs nothing per node.
+    pub(crate) grid: Option<&'a VisibilityGrid>,
 }
 
 /// One side of a split: left or right child, interval.
@@ -440,7 +489,25 @@ impl<'a> Tracer<'a> {
                 0.0
             },
             max_visits: scene.node_bound(),
+            parts: None,
+            grid: None,
         }
+    }
+
+    /// Rays that skip the parts `filter` hides: a hidden triangle is dropped before its
+    /// intersection test, and a LOD entry whose part word is hidden neither ends a ray nor
+    /// stands in for its missing subtree (the ray goes on to the finer levels, where what
+    /// stays visible is drawn as it is). At each LOD node, and at least every third node of a
+    /// path, the ray asks the filter's [`VisibilityGrid`] whether its stretch in the node's
+    /// cell (widened by the ray's tolerance) meets a visible part's box; where it does not,
+    /// the node is skipped with its subtree, at any level. Every visible hit lies in its
+    /// part's box and in the stretch of each node on the path to a leaf that holds it, so no
+    /// visible hit is lost. A filter that hides nothing changes nothing here (highlighting is
+    /// the shading's, [`crate::shade::Lighting::with_parts`]).
+    pub fn with_parts(mut self, filter: &'a PartFilter) -> Tracer<'a> {
+        self.parts = (filter.hidden() > 0).then_some(filter);
+        self.grid = self.parts.and_then(PartFilter::grid);
+        self
     }
 
     /// Where the ray first meets the scene, or None.
@@ -465,6 +532,23 @@ impl<'a> Tracer<'a> {
     /// The walk of [`Tracer::trace_to`] (`collect` false: the nearest surface ends the ray)
     /// and [`Tracer::trace_layers`] (`collect` true).
     fn walk_one(&self, ray: &Ray, t_max: f32, memo: &Memo, collect: bool) -> Layers {
+        // Two copies of the walk: without a grid not even its branch is in the node loop (on
+        // a close view of the CAD scene that branch cost 3-5 %).
+        match self.grid {
+            Some(g) => self.walk_with::<true>(ray, t_max, memo, collect, g),
+            None => self.walk_with::<false>(ray, t_max, memo, collect, &NO_GRID),
+        }
+    }
+
+    /// [`Tracer::walk_one`], asking `grid` where `GRID`.
+    fn walk_with<const GRID: bool>(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        memo: &Memo,
+        collect: bool,
+        grid: &VisibilityGrid,
+    ) -> Layers {
         let none = Layers {
             translucent: ArrayVec::new(),
             end: None,
@@ -502,6 +586,8 @@ impl<'a> Tracer<'a> {
             t0,
             t1,
             lods: 0,
+            due: 0,
+            full: false,
         });
         let axes = Axes::new(ray, eps);
         let mut visited = 0u64;
@@ -516,6 +602,18 @@ impl<'a> Tracer<'a> {
                 // that, treelets are shared and the paths may be too many to walk (spec §12).
                 if visited > self.max_visits {
                     break 'ray;
+                }
+                // Where the filter leaves nothing visible along the ray in this cell, the
+                // subtree shows nothing: skipped as if empty.
+                if GRID {
+                    let lod = matches!(n, NodeView::Lod { .. });
+                    if grid_due(&mut at.due, lod) && !at.full {
+                        match grid.cover_segment(ray, at.t0, at.t1, eps) {
+                            Cover::None => break,
+                            Cover::Some => {}
+                            Cover::Full => at.full = true,
+                        }
+                    }
                 }
                 match n {
                     NodeView::Inner {
@@ -585,18 +683,25 @@ impl<'a> Tracer<'a> {
                 t1: at.t1,
             },
         );
-        let stop = self.lod_c > 0.0 && l.radius <= at.t0 * self.lod_c;
+        let hidden = self.hides_lod(data, lod);
+        let stop = !hidden && self.lod_c > 0.0 && l.radius <= at.t0 * self.lod_c;
         let child = if stop {
             None
         } else {
             w.memo.treelets(self.cache, l.child_block)
         };
         let Some(child) = child else {
+            if hidden {
+                // Neither its look nor its proxy: they show mostly a hidden part. The ray
+                // passes the cell until the finer levels arrive.
+                w.memo.want(l.child_block, l.radius, at.t0);
+                return ControlFlow::Break(());
+            }
             let Some((look, proxy)) = data.look(lod) else {
                 return ControlFlow::Break(());
             };
             let (t0, t1) = (at.t0, at.t1);
-            let own = || shown(&look, ray, t0, t1, l.radius);
+            let own = || shown(&look, ray, t0, t1, l.radius, data.lod_part(lod));
             let found = if stop {
                 own()
             } else {
@@ -628,6 +733,8 @@ impl<'a> Tracer<'a> {
                 t0: f0,
                 t1: f1,
                 lods: at.lods,
+                due: at.due,
+                full: at.full,
             });
         }
         at.data = child;
@@ -640,12 +747,30 @@ impl<'a> Tracer<'a> {
     /// block is not available, the path's last voxel (the block is wanted either way).
     #[inline(always)]
     fn leaf_step(&self, w: &mut Walk<'_, '_>, t0: f32, (first, count): (u16, u16), block: u32) {
-        match w.memo.triangles(self.cache, block) {
+        let (td, mask) = match self.parts {
+            None => (w.memo.triangles(self.cache, block), BlockMask::NoneHidden),
+            Some(f) => match w.memo.masked(self.cache, block, f) {
+                Some((td, mask)) => (Some(td), mask),
+                None => (None, BlockMask::NoneHidden),
+            },
+        };
+        match td {
             Some(td) => {
                 let first = usize::from(first);
                 let list = td.list.get(first..first + usize::from(count));
                 let list = list.unwrap_or(&[]);
-                if let Some((ti, h)) = w.ray.nearest(list, &td.positions, w.best_t) {
+                let nearest = match (mask, self.parts) {
+                    (BlockMask::NoneHidden, _) | (_, None) => {
+                        w.ray.nearest(list, &td.positions, w.best_t)
+                    }
+                    (BlockMask::AllHidden, _) => None,
+                    (BlockMask::Mixed, Some(f)) => {
+                        let mut visible = w.memo.visible.borrow_mut();
+                        visible_entries(list, td, f, &mut visible);
+                        w.ray.nearest(&visible, &td.positions, w.best_t)
+                    }
+                };
+                if let Some((ti, h)) = nearest {
                     w.best_t = h.t;
                     w.best = Best::Triangle {
                         data: td,
@@ -657,12 +782,21 @@ impl<'a> Tracer<'a> {
             None => match w.lasts.last() {
                 Some(lv) => {
                     w.memo.want(block, lv.radius, lv.t);
-                    let found = opaque(lv.shown(w.ray));
-                    w.offer(found);
+                    // A hidden LOD entry stands in for nothing.
+                    if !self.hides_lod(lv.data, lv.lod) {
+                        let found = opaque(lv.shown(w.ray));
+                        w.offer(found);
+                    }
                 }
                 None => w.memo.want(block, f32::INFINITY, t0),
             },
         }
+    }
+
+    /// Whether the part filter hides LOD node `lod` of `data` (by its part word).
+    #[inline]
+    pub(crate) fn hides_lod(&self, data: &TreeletData, lod: u32) -> bool {
+        self.parts.is_some_and(|f| f.hides(data.lod_part(lod)))
     }
 
     /// The positional tolerance of a ray's split decisions: the scene's, or some ulps of the
@@ -671,6 +805,23 @@ impl<'a> Tracer<'a> {
         self.eps
             .max(ray.org.iter().fold(0f32, |a, &c| a.max(c.abs())) * 4e-6)
     }
+}
+
+/// The entries of a leaf's `list` in block `td` whose triangles `filter` does not hide, in
+/// order, into `out`: one look-up per triangle, before and instead of its intersection test.
+#[inline]
+pub(crate) fn visible_entries(
+    list: &[u16],
+    td: &TriangleData,
+    filter: &PartFilter,
+    out: &mut Vec<u16>,
+) {
+    out.clear();
+    out.extend(
+        list.iter()
+            .copied()
+            .filter(|&ti| !filter.hides(td.part(u32::from(ti)))),
+    );
 }
 
 /// `found` made opaque: a LOD entry shown because the data below it is missing stands in for
@@ -685,18 +836,20 @@ impl<'m> Best<'m> {
     #[inline(always)]
     fn opaque(self) -> Best<'m> {
         match self {
-            Best::Voxel { look, radius } => Best::Voxel {
+            Best::Voxel { look, radius, part } => Best::Voxel {
                 look: VoxelLook {
                     coverage: 1.0,
                     ..look
                 },
                 radius,
+                part,
             },
             Best::Plane {
                 normal,
                 colour,
                 radius,
                 shade,
+                part,
                 ..
             } => Best::Plane {
                 normal,
@@ -704,6 +857,7 @@ impl<'m> Best<'m> {
                 radius,
                 coverage: 1.0,
                 shade,
+                part,
             },
             other => other,
         }
@@ -725,7 +879,8 @@ impl Best<'_> {
     /// The hit this nearest surface at `t` makes; None for none.
     pub(crate) fn hit(self, t: f32) -> Option<Hit> {
         let (mut shade, mut coverage) = (1.0, 1.0);
-        let (surface, radius) = match self {
+        let word = |p: u32| (p != NONE).then_some(p);
+        let (surface, radius, part) = match self {
             Best::None => return None,
             Best::Triangle {
                 data,
@@ -738,22 +893,24 @@ impl Best<'_> {
                     bary,
                 },
                 0.0,
+                data.part(triangle),
             ),
-            Best::Voxel { look, radius } => {
+            Best::Voxel { look, radius, part } => {
                 (shade, coverage) = (look.shade, look.coverage);
                 let (normal, colour) = (look.normal, look.colour);
-                (Surface::Voxel { normal, colour }, radius)
+                (Surface::Voxel { normal, colour }, radius, word(part))
             }
-            Best::Proxy(s, r) => (Surface::Proxy(s), r),
+            Best::Proxy(s, r) => (Surface::Proxy(s), r, None),
             Best::Plane {
                 normal,
                 colour,
                 radius,
                 coverage: c,
                 shade: s,
+                part,
             } => {
                 (shade, coverage) = (s, c);
-                (Surface::Plane { normal, colour }, radius)
+                (Surface::Plane { normal, colour }, radius, word(part))
             }
         };
         Some(Hit {
@@ -762,6 +919,7 @@ impl Best<'_> {
             radius,
             shade,
             coverage,
+            part,
         })
     }
 }

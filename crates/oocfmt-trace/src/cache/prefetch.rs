@@ -159,7 +159,9 @@ impl<'a> Probe<'a> {
         let rows = rows.min(frame.height());
         let cols = ((f64::from(rows) * w / h).round() as u32).clamp(1, frame.width());
         let lod_c = f64::from(poe) * frame.pixel_angle();
-        let tracer = Tracer::new(scene, self, lod_c as f32);
+        // The probes pass the hidden parts as the frames will.
+        let parts = scene.parts();
+        let tracer = Tracer::new(scene, self, lod_c as f32).with_parts(&parts);
         (0..rows)
             .into_par_iter()
             .map_init(

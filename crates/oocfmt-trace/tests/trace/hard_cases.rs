@@ -311,6 +311,7 @@ fn cad(dir: &Path, n: u64) -> PathBuf {
         triangles: n,
         seed: 11,
         normals: false,
+        parts: Some(0),
     };
     cad::write_obj(&obj, &opts, &mut |_, _| {}).unwrap();
     let out = dir.join(format!("cad-{n}.oocf"));

@@ -9,6 +9,7 @@ mod hard_cases;
 mod kernels;
 mod malformed;
 mod packets;
+mod parts;
 mod prefiltered;
 mod reference;
 mod secondary;

@@ -50,6 +50,8 @@ pub fn cad_scene(dir: &Path, triangles: u64) -> PathBuf {
         triangles,
         seed: 7,
         normals: true,
+        // No `o`/`g` lines: the files these tests were written against.
+        parts: Some(0),
     };
     cad::write_obj(&obj, &opts, &mut |_, _| {}).unwrap();
     let out = dir.join("cad.oocf");
