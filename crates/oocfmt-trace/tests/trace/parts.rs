@@ -409,6 +409,32 @@ fn the_async_cache_converges_to_the_blocking_cache_s_masked_image() {
 }
 
 #[test]
+fn hiding_and_isolating_give_the_same_image_in_every_cache_mode() {
+    // Uncompressed: the mmap cache maps blocks in place.
+    let f = files(Codec::None);
+    let without = frame(&open(&f.left), 0.0);
+    for (name, scene, cache) in caches(&f.both) {
+        for sel in [
+            hide(&["right"]),
+            PartSelection {
+                isolate: vec!["left".into()],
+                ..PartSelection::default()
+            },
+        ] {
+            select(&scene, sel);
+            let image = if cache.kind() == CacheKind::Async {
+                let settled = session::settle(&scene, &cache, &camera(), &opts(0.0)).unwrap();
+                assert!(settled.complete, "{name}");
+                settled.frame.image
+            } else {
+                render(&scene, cache.get(), &camera(), &opts(0.0)).unwrap().0
+            };
+            same_image(&image, &without, &format!("{name}: the left sphere alone"));
+        }
+    }
+}
+
+#[test]
 fn packets_and_single_rays_agree_under_a_filter() {
     let dir = tempfile::tempdir().unwrap();
     let obj = dir.path().join("cad.obj");
