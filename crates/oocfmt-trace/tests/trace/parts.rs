@@ -427,7 +427,9 @@ fn hiding_and_isolating_give_the_same_image_in_every_cache_mode() {
                 assert!(settled.complete, "{name}");
                 settled.frame.image
             } else {
-                render(&scene, cache.get(), &camera(), &opts(0.0)).unwrap().0
+                render(&scene, cache.get(), &camera(), &opts(0.0))
+                    .unwrap()
+                    .0
             };
             same_image(&image, &without, &format!("{name}: the left sphere alone"));
         }
