@@ -188,3 +188,31 @@ fn stl_solids_become_parts_and_a_ply_export_keeps_them() {
     assert_eq!(report["triangles_stored"], 24, "{report}");
     assert_eq!(part_rows(&parts_json(d, "back.oocf")), want);
 }
+
+#[test]
+fn several_files_are_parts_above_their_own_parts() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let d = dir.path();
+    write(d, "lid.stl", ascii_stl(&["lid"]).as_bytes());
+    write(d, "box.ply", &ply("ascii"));
+    let obj = "v 0 0 5\nv 1 0 5\nv 0 1 5\nv 1 1 5\no frame\ng bar\nf 1 2 3\ng rod\nf 2 4 3\n";
+    write(d, "frame.obj", obj.as_bytes());
+    let report = convert_ok(d, &["lid.stl", "box.ply", "frame.obj", "-o", "all.oocf"]);
+    assert_eq!(report["triangles_stored"], 26, "{report}");
+    run_ok(&["verify", "all.oocf", "--deep"], d);
+    let rows = part_rows(&parts_json(d, "all.oocf"));
+    let row =
+        |name: &str, parent: Option<u64>, triangles: u64| (name.to_string(), parent, triangles);
+    assert_eq!(
+        rows,
+        vec![
+            row("lid.stl", None, 0),
+            row("lid", Some(0), 12),
+            row("box.ply", None, 12),
+            row("frame.obj", None, 0),
+            row("frame", Some(3), 0),
+            row("bar", Some(4), 1),
+            row("rod", Some(4), 1),
+        ]
+    );
+}

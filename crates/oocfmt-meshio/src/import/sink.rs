@@ -130,7 +130,7 @@ impl<S> Intake<S> {
         }
     }
 
-    /// Makes each input file a part (named by its path as displayed) above the parts it
+    /// Makes each input file a part (named by its file name) above the parts it
     /// declares, and the part of its triangles that declare none: for imports of several files.
     pub fn with_file_parts(self, on: bool) -> Intake<S> {
         Intake {
@@ -285,7 +285,12 @@ impl<S: Store> TriangleSink for Intake<S> {
         self.report.files.push(path.to_string());
         self.file_part = None;
         if self.file_parts {
-            self.file_part = self.declare_part(PartDef::new(path, None)).ok();
+            // Named by its file name: a `/` in a part's name would blur the paths that
+            // `render --hide a/b` matches; the whole path is the part's `source`.
+            let name = std::path::Path::new(path)
+                .file_name()
+                .map_or_else(|| path.to_string(), |n| n.to_string_lossy().into_owned());
+            self.file_part = self.declare_part(PartDef::new(name, None)).ok();
         }
     }
 
