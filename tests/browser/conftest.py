@@ -58,6 +58,32 @@ def server(oocfmt, model):
 
 
 @pytest.fixture(scope="session")
+def cad_model(oocfmt):
+    """A 20 000-triangle CAD assembly with parts, converted once per run."""
+    OUT.mkdir(parents=True, exist_ok=True)
+    obj, oocf = OUT / "cad.obj", OUT / "cad.oocf"
+    subprocess.run([oocfmt, "gen", "cad", "--tris", "20000", "--parts", "40", "-o", str(obj), "--quiet"], check=True)
+    subprocess.run([oocfmt, "convert", str(obj), "-o", str(oocf), "--quiet"], check=True)
+    return oocf
+
+
+@pytest.fixture(scope="session")
+def cad_server(oocfmt, cad_model):
+    """`oocfmt view` on the CAD model, as `server` is on the Mandelbulb."""
+    proc = subprocess.Popen(
+        [oocfmt, "view", str(cad_model), "--port", "0", "--spp", "2", "--poe", "0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    url = proc.stdout.readline().strip()
+    assert re.fullmatch(r"http://127\.0\.0\.1:\d+/\?token=[0-9a-f]{32}", url), url
+    yield url
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=20) == 0, proc.stderr.read()
+
+
+@pytest.fixture(scope="session")
 def browser():
     with sync_playwright() as p:
         b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=["--no-sandbox"])

@@ -1,7 +1,9 @@
 """`oocfmt view` in a real browser (headless Debian chromium): the page loads and shows a
 frame, a drag changes the picture, keys fly, a click prints a distance, the URL hash
 round-trips the view, a wrong token is refused, the screenshot button downloads the frame and bookmarks replay with
-`render --path`. Screenshots are saved under target/browser/."""
+`render --path`, a section plane cuts the picture (along an axis, flipped, through a
+pick), and the model tree of a file with parts opens lazily, hides, isolates and marks the
+picked part. Screenshots are saved under target/browser/."""
 
 import json
 import subprocess
@@ -186,3 +188,172 @@ def test_a_click_prints_a_distance_and_two_measure(page, server):
     page.mouse.click(box["x"] + 3, box["y"] + 3)
     page.wait_for_function("() => window.oocfmt.picks.length === 3")
     assert "nothing there" in page.inner_text("#pick")
+
+
+# The newest frame arrived after the first `n` and is the still view's last, and it is drawn.
+SETTLED_AFTER = """(n) => {
+  const o = window.oocfmt, h = o.history;
+  if (o.frames <= n || !h.length) return false;
+  const e = h[h.length - 1];
+  return e.header.figures.last && o.last === e.header;
+}"""
+
+
+def settle_after(page, n):
+    page.wait_for_function(SETTLED_AFTER, arg=n, timeout=30_000)
+    return page.evaluate(CANVAS)
+
+
+def frames(page):
+    return page.evaluate("() => window.oocfmt.frames")
+
+
+def slide(page, value):
+    page.evaluate(
+        "(v) => { const s = document.getElementById('section-pos'); s.value = String(v); s.dispatchEvent(new Event('input')); }",
+        value,
+    )
+
+
+def test_a_section_plane_cuts_the_picture_flips_and_goes_through_a_pick(page, server):
+    open_view(page, server)
+    whole = page.evaluate(CANVAS)
+    n = frames(page)
+    page.select_option("#section-axis", "x")
+    half = settle_after(page, n)
+    plane = page.evaluate("() => window.oocfmt.section")
+    assert plane["normal"] == [1, 0, 0], plane
+    assert half["hash"] != whole["hash"]
+    assert "x ≥" in page.inner_text("#section-value")
+    page.screenshot(path=str(OUT / "view-section.png"))
+    # At the box's high end the plane keeps nothing: the background.
+    n = frames(page)
+    slide(page, 1000)
+    empty = settle_after(page, n)
+    assert empty["model"] < 0.005, empty
+    # Flipped it keeps everything again.
+    n = frames(page)
+    page.click("#section-flip")
+    kept = settle_after(page, n)
+    assert page.evaluate("() => window.oocfmt.section.normal") == [-1, 0, 0]
+    assert abs(kept["model"] - whole["model"]) < 0.01, (kept, whole)
+    # Through a picked point, along its normal: the picked surface is cut away.
+    box = page.locator("#frame").bounding_box()
+    page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.wait_for_function("() => window.oocfmt.picks.length === 1")
+    hit = page.evaluate("() => window.oocfmt.picks[0].hit")
+    assert hit is not None
+    n = frames(page)
+    page.select_option("#section-axis", "pick")
+    through = settle_after(page, n)
+    plane = page.evaluate("() => window.oocfmt.section")
+    assert dot(plane["normal"], hit["normal"]) < -0.999, (plane, hit)
+    assert through["model"] > 0.01, through
+    page.screenshot(path=str(OUT / "view-section-pick.png"))
+    # The same pixel picked again sees past the surface that was there: farther, or nothing.
+    page.evaluate("() => { const p = window.oocfmt.picks[0]; window.oocfmt.send({ type: 'pick', seq: 99, x: p.x, y: p.y }); }")
+    page.wait_for_function("() => window.oocfmt.picks.length === 2")
+    again = page.evaluate("() => window.oocfmt.picks[1].hit")
+    assert again is None or again["distance"] > hit["distance"], (again, hit)
+    # Off: the whole model, as before.
+    n = frames(page)
+    page.select_option("#section-axis", "")
+    back = settle_after(page, n)
+    assert page.evaluate("() => window.oocfmt.section") is None
+    assert abs(back["model"] - whole["model"]) < 0.01, (back, whole)
+
+
+def test_the_model_tree_opens_lazily_hides_isolates_and_marks_the_picked_part(page, cad_server):
+    open_view(page, cad_server)
+    page.wait_for_function("() => window.oocfmt.tree.rows > 0")
+    whole = page.evaluate(CANVAS)
+    top = page.evaluate("() => window.oocfmt.tree.rows")
+    # Only the top level is there until a part is opened.
+    first = page.locator("#tree-rows > .part > .line").first
+    first.locator(".toggle").click()
+    page.wait_for_function("(n) => window.oocfmt.tree.rows > n", arg=top)
+    assert page.locator("#tree-rows > .part").first.locator(".kids > .part").count() > 0
+    # Hiding the first top-level part changes the picture; showing all brings it back.
+    n = frames(page)
+    first.locator("input[type=checkbox]").uncheck()
+    hidden = settle_after(page, n)
+    assert page.evaluate("() => window.oocfmt.tree.hidden") == [int(first.get_attribute("data-id"))]
+    assert hidden["hash"] != whole["hash"]
+    page.screenshot(path=str(OUT / "view-tree-hidden.png"))
+    n = frames(page)
+    page.click("#tree-all")
+    back = settle_after(page, n)
+    assert back["hash"] == whole["hash"]
+    # Isolating one part shows less of the model than the whole.
+    n = frames(page)
+    first.locator("button", has_text="isolate").click()
+    alone = settle_after(page, n)
+    assert alone["model"] < whole["model"], (alone, whole)
+    n = frames(page)
+    page.click("#tree-all")
+    settle_after(page, n)
+    # A pick opens the tree down to the picked part and marks it.
+    box = page.locator("#frame").bounding_box()
+    page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.wait_for_function("() => window.oocfmt.picks.length === 1")
+    pick = page.evaluate("() => window.oocfmt.picks[0]")
+    assert pick["hit"] is not None and pick["lineage"], pick
+    part = pick["lineage"][-1]
+    assert pick["hit"]["part"] == part
+    page.wait_for_selector(f"#tree .line.picked[data-id='{part}']", timeout=10_000)
+    assert page.evaluate("() => window.oocfmt.tree.picked") == part
+    page.screenshot(path=str(OUT / "view-tree-picked.png"))
+    # An id past the part table is refused and changes nothing.
+    page.evaluate("() => window.oocfmt.send({ type: 'parts', hide: [100000] })")
+    page.wait_for_function("() => window.oocfmt.errors.some((e) => e.includes('parts refused'))")
+
+
+# The screen distance, in CSS pixels, from pick `m`'s pixel to each corner of its triangle.
+CORNER_PX = """(m) => {
+  const c = document.getElementById('frame');
+  const scale = c.width / c.clientWidth;
+  return m.hit.corners.map((p) => {
+    const s = window.oocfmt.onScreen(p);
+    return s ? Math.hypot(s[0] - (m.x + 0.5), s[1] - (m.y + 0.5)) / scale : 1e9;
+  });
+}"""
+
+
+def test_a_measure_snaps_to_a_vertex_within_a_few_pixels(page, cad_server):
+    open_view(page, cad_server)
+    page.click("#tree-toggle")  # the tree off the picture
+    box = page.locator("#frame").bounding_box()
+    page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.wait_for_function("() => window.oocfmt.picks.length === 1")
+    first = page.evaluate("() => window.oocfmt.picks[0]")
+    assert first["hit"] and first["hit"]["corners"], first
+    # Snapped exactly when a corner is within 6 pixels of the click.
+    d = page.evaluate(CORNER_PX, first)
+    assert first["snapped"] == (min(d) <= 6), (first, d)
+    # Clicks 2 pixels from each corner of that triangle, towards its middle: each snaps
+    # exactly when a corner of what it hit is within 6 pixels, and one that lands on the same
+    # triangle (another surface may cover a corner) snaps to a vertex of it.
+    on = [page.evaluate("(p) => window.oocfmt.onScreen(p)", c) for c in first["hit"]["corners"]]
+    mid = [sum(p[k] for p in on) / 3 for k in range(2)]
+    width = page.evaluate("() => document.getElementById('frame').width")
+    scale = box["width"] / width
+    same = 0
+    for k, corner in enumerate(on):
+        cx, cy = corner[0] * scale, corner[1] * scale
+        dx, dy = mid[0] * scale - cx, mid[1] * scale - cy
+        norm = max(1e-9, (dx * dx + dy * dy) ** 0.5)
+        step = min(2.0, norm / 2)
+        page.mouse.click(box["x"] + cx + dx / norm * step, box["y"] + cy + dy / norm * step)
+        page.wait_for_function("(n) => window.oocfmt.picks.length === n", arg=k + 2)
+        m = page.evaluate("(n) => window.oocfmt.picks[n]", k + 1)
+        if not (m["hit"] and m["hit"]["corners"]):
+            continue
+        d = page.evaluate(CORNER_PX, m)
+        assert m["snapped"] == (min(d) <= 6), (m, d)
+        if m["hit"]["triangle"] == first["hit"]["triangle"]:
+            same += 1
+            assert m["snapped"] and m["measured"] in m["hit"]["corners"], m
+            text = page.inner_text("#pick")
+            assert "snapped to the vertex" in text and "from the pick before" in text, text
+    assert same > 0, "no click landed on the first pick's triangle"
+    page.screenshot(path=str(OUT / "view-snapped.png"))

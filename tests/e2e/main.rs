@@ -13,4 +13,5 @@ mod parts_render;
 mod recentre;
 mod render;
 mod rlod;
+mod section;
 mod view;

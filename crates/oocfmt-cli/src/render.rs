@@ -21,7 +21,7 @@ use oocfmt_trace::render::{FrameStats, Image};
 use oocfmt_trace::session::{
     self, Cache, CacheKind, FrameFigures, Settled, WalkFrame, Walkthrough,
 };
-use oocfmt_trace::{walk, Camera, RenderOptions, Scene};
+use oocfmt_trace::{walk, Camera, RenderOptions, Scene, Section};
 
 use crate::accuracy::{self, Accuracy};
 use crate::args::{
@@ -185,6 +185,12 @@ pub struct Args {
     /// detail by each triangle's part, at a LOD entry by its part word); repeatable, as --hide
     #[arg(long, value_name = "GLOB")]
     pub highlight: Vec<String>,
+    /// Cut the model open with a section plane (world coordinates): `x=V` (or y, z) keeps
+    /// where that coordinate is >= V, `-x=V` where it is <= V, `X,Y,Z,NX,NY,NZ` the side of
+    /// the plane through the point that the normal points to. Clips primary rays and --pick;
+    /// shadow and ambient-occlusion rays still see the whole model
+    #[arg(long, value_name = "PLANE", value_parser = Section::parse, allow_hyphen_values = true)]
+    pub section: Option<Section>,
     /// Pick pixel X,Y (0,0 the top left) of the view at --poe: print the distance, point,
     /// normal, triangle and part its centre ray meets first, reading any block it needs even
     /// with the async cache; renders nothing unless --output is given too (then after the
@@ -222,6 +228,7 @@ pub fn run(a: &Args) -> CliResult {
     }
     let (scene, cache) = open_cache(a)?;
     choose_parts(a, &scene)?;
+    scene.set_section(a.section);
     let opts = RenderOptions {
         poe: a.poe,
         spp: a.spp,

@@ -14,15 +14,17 @@ pub use crate::traverse::{Layers, MAX_LAYERS, MIN_TRANSMITTANCE};
 /// The colour `ray` shows: `shade(hit)` (the linear RGB of one surface) of the translucent
 /// surfaces it meets, front to back, each weighted by its coverage and what the ones before
 /// let through, over the opaque surface it ends on or, where it leaves the scene,
-/// `background`.
+/// `background`. Surfaces at `t_max` or beyond are not met (a section plane's end of the
+/// ray; infinity for the whole ray).
 pub fn composite(
     tracer: &Tracer<'_>,
     ray: &Ray,
+    t_max: f32,
     memo: &mut Memo,
     background: [f32; 3],
     shade: &mut dyn FnMut(&crate::traverse::Hit, &mut Memo) -> [f32; 3],
 ) -> [f32; 3] {
-    let layers = tracer.trace_layers(ray, f32::INFINITY, memo);
+    let layers = tracer.trace_layers(ray, t_max, memo);
     let mut colour = [0f32; 3];
     let mut through = 1f32;
     for hit in &layers.translucent {

@@ -107,6 +107,14 @@ pub enum PartError {
         /// The names (or paths) nearest the glob's text, nearest first.
         close: Vec<String>,
     },
+    /// A part id given to [`PartFilter::from_ids`] is past the part table.
+    #[error("part id {id}: the file has {parts} parts (ids 0 to {parts} - 1)")]
+    IdOutOfRange {
+        /// The id given.
+        id: u32,
+        /// How many parts the file has.
+        parts: usize,
+    },
     /// The part tree is too deep to build every path of.
     #[error("{flag} {glob}: the part paths would take over {limit} bytes; match names instead (a glob without `/`)")]
     PathsTooLong {
@@ -202,6 +210,58 @@ impl PartFilter {
             .map(|i| {
                 let hidden = at(&hide, i).unwrap_or(false) || !at(&isolate, i).unwrap_or(true);
                 if hidden {
+                    PartState::Hidden
+                } else if at(&highlight, i).unwrap_or(false) {
+                    PartState::Highlighted
+                } else {
+                    PartState::Visible
+                }
+            })
+            .collect();
+        let count = |s| states.iter().filter(|&&x| x == s).count();
+        let hidden = count(PartState::Hidden);
+        Ok(PartFilter {
+            id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+            hidden,
+            highlighted: count(PartState::Highlighted),
+            grid: (hidden > 0).then(|| visible_grid(parts, &states)).flatten(),
+            states,
+        })
+    }
+
+    /// The filter of part ids (a viewer's model tree, which names parts by id, not by glob):
+    /// `hide` hides those parts, `isolate` (when not empty) hides every part outside it, and
+    /// `highlight` tints, each with every descendant, as [`PartFilter::new`] does for globs.
+    /// An id past the table is an error; nothing given makes [`PartFilter::none`].
+    pub fn from_ids(
+        parts: &[Part],
+        hide: &[u32],
+        isolate: &[u32],
+        highlight: &[u32],
+    ) -> Result<PartFilter, PartError> {
+        if hide.is_empty() && isolate.is_empty() && highlight.is_empty() {
+            return Ok(PartFilter::none());
+        }
+        let marks = |ids: &[u32]| -> Result<Option<Vec<bool>>, PartError> {
+            if ids.is_empty() {
+                return Ok(None);
+            }
+            let mut all = vec![false; parts.len()];
+            for &id in ids {
+                let at = all.get_mut(id as usize).ok_or(PartError::IdOutOfRange {
+                    id,
+                    parts: parts.len(),
+                })?;
+                *at = true;
+            }
+            with_descendants(parts, &mut all);
+            Ok(Some(all))
+        };
+        let (hide, isolate, highlight) = (marks(hide)?, marks(isolate)?, marks(highlight)?);
+        let at = |v: &Option<Vec<bool>>, i: usize| v.as_ref().and_then(|v| v.get(i).copied());
+        let states: Vec<PartState> = (0..parts.len())
+            .map(|i| {
+                if at(&hide, i).unwrap_or(false) || !at(&isolate, i).unwrap_or(true) {
                     PartState::Hidden
                 } else if at(&highlight, i).unwrap_or(false) {
                     PartState::Highlighted
@@ -707,6 +767,40 @@ mod tests {
             ..PartSelection::default()
         })?;
         assert_eq!(s, [H, H, H, V, V, H, H]);
+        Ok(())
+    }
+
+    #[test]
+    fn ids_hide_isolate_and_highlight_with_descendants_like_globs() -> Result<(), PartError> {
+        let t = tree();
+        for (name, ids) in [("hide", 0usize), ("isolate", 1), ("highlight", 2)] {
+            // Each id form against the glob form of the same parts.
+            for id in 0..t.len() as u32 {
+                let mut lists: [Vec<u32>; 3] = Default::default();
+                lists[ids] = vec![id];
+                let by_id = PartFilter::from_ids(&t, &lists[0], &lists[1], &lists[2])?;
+                let glob = part_path(&t, id).unwrap_or_default();
+                let mut sel = PartSelection::default();
+                match name {
+                    "hide" => sel.hide = vec![glob],
+                    "isolate" => sel.isolate = vec![glob],
+                    _ => sel.highlight = vec![glob],
+                }
+                let by_glob = PartFilter::new(&t, &sel)?;
+                let states =
+                    |f: &PartFilter| (0..t.len() as u32).map(|p| f.state(p)).collect::<Vec<_>>();
+                assert_eq!(states(&by_id), states(&by_glob), "{name} {id}");
+            }
+        }
+        assert!(PartFilter::from_ids(&t, &[], &[], &[])?.is_empty());
+        let e = PartFilter::from_ids(&t, &[t.len() as u32], &[], &[]);
+        assert_eq!(
+            e,
+            Err(PartError::IdOutOfRange {
+                id: t.len() as u32,
+                parts: t.len()
+            })
+        );
         Ok(())
     }
 

@@ -19,6 +19,7 @@ use crate::error::TraceError;
 use crate::intersect::Ray;
 use crate::parts::part_path;
 use crate::scene::Scene;
+use crate::section::Clip;
 use crate::spawn::triangle_normal;
 use crate::traverse::{Memo, Surface, Tracer};
 
@@ -34,6 +35,9 @@ pub struct Pick {
     pub normal: [f32; 3],
     /// At full detail, the triangle hit; None on a LOD entry.
     pub triangle: Option<PickedTriangle>,
+    /// At full detail, the hit triangle's corners, world coordinates (a viewer's measure snaps
+    /// to the nearest when it is close on screen); None on a LOD entry.
+    pub corners: Option<[[f64; 3]; 3]>,
     /// The part: the triangle's, or the LOD entry's part word; None in a file without parts.
     pub part: Option<u32>,
     /// The part's name.
@@ -96,7 +100,12 @@ pub fn pick_ray(
     let filter = scene.parts();
     let tracer = Tracer::new(scene, &waiting, lod_c).with_parts(&filter);
     let memo = Memo::new(scene);
-    let hit = tracer.trace(ray, &memo);
+    // A section hides what it cuts away from picks as from frames.
+    let clip = scene.stored_section().map_or(Clip::Whole, |s| s.clip(ray));
+    let hit = clip
+        .ray(ray)
+        .and_then(|r| tracer.trace(&r, &memo))
+        .filter(|h| h.t <= clip.limit());
     let failed = waiting
         .failed
         .lock()
@@ -111,23 +120,27 @@ pub fn pick_ray(
     let m = scene.metadata();
     let d64 = ray.dir.map(f64::from);
     let len = (d64[0] * d64[0] + d64[1] * d64[1] + d64[2] * d64[2]).sqrt();
-    let t = f64::from(hit.t);
+    let t = f64::from(hit.t) + f64::from(clip.start());
     let point = [0, 1, 2].map(|k| f64::from(ray.org[k]) + t * d64[k] + m.scene.origin[k]);
-    let (normal, triangle) = match &hit.surface {
+    let world = |p: &[f32; 3]| [0, 1, 2].map(|k| f64::from(p[k]) + m.scene.origin[k]);
+    let (normal, triangle, corners) = match &hit.surface {
         Surface::Triangle { data, triangle, .. } => {
-            let n = data
-                .positions
-                .get(*triangle as usize)
-                .and_then(triangle_normal)
-                .map(|n| n.map(|c| c as f32));
+            let at = data.positions.get(*triangle as usize);
+            let n = at.and_then(triangle_normal).map(|n| n.map(|c| c as f32));
             let picked = PickedTriangle {
                 block: data.block,
                 index: *triangle,
             };
-            (n, Some(picked))
+            (
+                n,
+                Some(picked),
+                at.map(|v| [world(&v[0]), world(&v[1]), world(&v[2])]),
+            )
         }
-        Surface::Voxel { normal, .. } | Surface::Plane { normal, .. } => (Some(*normal), None),
-        Surface::Proxy(s) => (Some(s.normal()), None),
+        Surface::Voxel { normal, .. } | Surface::Plane { normal, .. } => {
+            (Some(*normal), None, None)
+        }
+        Surface::Proxy(s) => (Some(s.normal()), None, None),
     };
     let normal = facing(normal.unwrap_or(ray.dir.map(|c| -c)), ray.dir);
     let part = hit.part;
@@ -137,6 +150,7 @@ pub fn pick_ray(
         normal,
         lod: triangle.is_none(),
         triangle,
+        corners,
         part,
         part_name: part.and_then(|p| m.parts.get(p as usize).map(|x| x.name.clone())),
         part_path: part.and_then(|p| part_path(&m.parts, p)),

@@ -22,6 +22,7 @@ use crate::occlusion::{default_distance, Occlusion};
 use crate::parts::PartFilter;
 use crate::sampling::{hash, pixel_offset, Stream};
 use crate::scene::Scene;
+use crate::section::{Clip, Section};
 use crate::shade::{encode_srgb, Lighting, Secondary};
 use crate::traverse::{Hit, Memo, Surface, Tracer};
 
@@ -259,7 +260,9 @@ fn primary_hits(tracer: &Tracer<'_>, rays: &[Ray], width: usize, memo: &Memo) ->
 }
 
 /// Renders one frame of `scene` through `cache`. `camera` is in stored coordinates. The
-/// frame shows the parts the scene's filter shows ([`Scene::set_parts`], read once here).
+/// frame shows the parts the scene's filter shows ([`Scene::set_parts`], read once here), cut
+/// by the scene's section plane ([`Scene::set_section`], read once here): primary rays see
+/// only the kept half-space ([`crate::section`]).
 pub fn render(
     scene: &Scene,
     cache: &dyn BlockCache,
@@ -269,7 +272,8 @@ pub fn render(
     opts.check()?;
     let frame = camera.frame()?;
     let parts = scene.parts();
-    let job = FrameJob::new(scene, cache, &frame, opts, &parts);
+    let mut job = FrameJob::new(scene, cache, &frame, opts, &parts);
+    job.section = scene.stored_section();
     let start = Instant::now();
     cache.begin_frame();
     let done: Vec<TileOut> = (0..job.tiles())
@@ -295,6 +299,8 @@ struct FrameJob<'a> {
     tiles_x: u32,
     /// The sRGB colour of a centre ray that hits nothing, with one ray per pixel.
     background: [u8; 3],
+    /// The section plane clipping the primary rays, in stored coordinates.
+    section: Option<Section>,
 }
 
 /// The figures of a frame's tiles, added up.
@@ -340,6 +346,7 @@ impl<'a> FrameJob<'a> {
             lod_c,
             tiles_x: frame.width().div_ceil(TILE),
             background: opts.background.map(encode_srgb),
+            section: None,
         }
     }
 
@@ -378,6 +385,18 @@ impl<'a> FrameJob<'a> {
                 rays.push(self.frame.ray(x, y));
             }
         }
+        // Under a section each ray is traced from where it enters the kept half-space; a ray
+        // that keeps nothing is traced as it is and its hit dropped.
+        let clips: Option<Vec<Clip>> = self
+            .section
+            .map(|s| rays.iter().map(|r| s.clip(r)).collect());
+        if let Some(clips) = &clips {
+            for (r, c) in rays.iter_mut().zip(clips) {
+                if let Some(t) = c.ray(r) {
+                    *r = t;
+                }
+            }
+        }
         let mut hits = primary_hits(&self.tracer, &rays, (x1 - x0) as usize, memo);
         let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (y, x)));
         for (k, (y, x)) in pixels.enumerate() {
@@ -387,10 +406,15 @@ impl<'a> FrameJob<'a> {
             let (Some(&ray), Some(hit)) = (rays.get(k), hits.get_mut(k)) else {
                 continue;
             };
-            let hit = hit.take();
+            let clip = clips.as_ref().and_then(|c| c.get(k)).copied();
+            let clip = clip.unwrap_or(Clip::Whole);
+            let hit = hit.take().filter(|h| h.t <= clip.limit());
             out.endings.record(hit.as_ref());
-            out.depth.push(hit.as_ref().map_or(f32::INFINITY, |h| h.t));
-            let (colour, sampled) = self.colour(x, y, &ray, hit.as_ref(), memo, &mut out.secondary);
+            out.depth
+                .push(hit.as_ref().map_or(f32::INFINITY, |h| h.t + clip.start()));
+            let centre = (&ray, clip.limit());
+            let (colour, sampled) =
+                self.colour(x, y, centre, hit.as_ref(), memo, &mut out.secondary);
             out.model.push(hit.is_some() || sampled);
             out.rgb.push(colour);
         }
@@ -399,8 +423,8 @@ impl<'a> FrameJob<'a> {
         out
     }
 
-    /// The shading: the sRGB colour of pixel (x, y), whose centre ray is `centre` and hit
-    /// `hit`, and whether one of the pixel's sample rays hit the model. With one ray per pixel
+    /// The shading: the sRGB colour of pixel (x, y), whose centre ray (as traced, with the
+    /// farthest a section keeps along it) is `centre` and hit `hit`, and whether one of the pixel's sample rays hit the model. With one ray per pixel
     /// that is the centre ray's colour (and no sample ray); with more, the stratified mean
     /// ([`FrameJob::stratified`]).
     #[inline]
@@ -408,7 +432,7 @@ impl<'a> FrameJob<'a> {
         &self,
         x: u32,
         y: u32,
-        centre: &Ray,
+        (centre, limit): (&Ray, f32),
         hit: Option<&Hit>,
         memo: &mut Memo,
         secondary: &mut Secondary,
@@ -419,7 +443,7 @@ impl<'a> FrameJob<'a> {
         let colour = match hit {
             Some(hit) => {
                 let seed = hash(x, y, 0, Stream::Occlusion);
-                self.shaded(hit, centre, seed, memo, secondary)
+                self.shaded(hit, (centre, limit), seed, memo, secondary)
                     .map(encode_srgb)
             }
             None => self.background,
@@ -428,12 +452,13 @@ impl<'a> FrameJob<'a> {
     }
 
     /// The linear RGB colour of `ray`, whose first hit is `hit`: its shade, composited over
-    /// what lies behind when it is a translucent LOD entry ([`composite`]).
+    /// what lies behind (up to `limit`, a section's end of the ray) when it is a translucent
+    /// LOD entry ([`composite`]).
     #[inline]
     fn shaded(
         &self,
         hit: &Hit,
-        ray: &Ray,
+        (ray, limit): (&Ray, f32),
         seed: u64,
         memo: &mut Memo,
         secondary: &mut Secondary,
@@ -444,7 +469,14 @@ impl<'a> FrameJob<'a> {
         // The packet found the first surface; one walk of the single ray finds every one.
         let lighting = &self.lighting;
         let mut shade = |h: &Hit, m: &mut Memo| lighting.colour(h, ray, seed, m, secondary);
-        composite(&self.tracer, ray, memo, self.opts.background, &mut shade)
+        composite(
+            &self.tracer,
+            ray,
+            limit,
+            memo,
+            self.opts.background,
+            &mut shade,
+        )
     }
 
     /// The sRGB encoding of the mean, in linear RGB, of `spp` rays through stratified points
@@ -463,11 +495,14 @@ impl<'a> FrameJob<'a> {
         for k in 0..spp {
             let [ox, oy] = pixel_offset(x, y, k, spp);
             let ray = self.frame.ray_at(f64::from(x) + ox, f64::from(y) + oy);
-            let c = match self.tracer.trace(&ray, memo) {
-                Some(hit) => {
+            let clip = self.section.map_or(Clip::Whole, |s| s.clip(&ray));
+            let traced = clip.ray(&ray);
+            let hit = traced.and_then(|r| Some((self.tracer.trace(&r, memo)?, r)));
+            let c = match hit.filter(|(h, _)| h.t <= clip.limit()) {
+                Some((hit, ray)) => {
                     any = true;
                     let seed = hash(x, y, k, Stream::Occlusion);
-                    self.shaded(&hit, &ray, seed, memo, secondary)
+                    self.shaded(&hit, (&ray, clip.limit()), seed, memo, secondary)
                 }
                 None => self.opts.background,
             };

@@ -10,6 +10,7 @@ use oocfmt::{BlockKind, ReadOptions, Reader};
 use crate::blocks::{LodKind, TreeletData, TriangleData};
 use crate::error::TraceError;
 use crate::parts::PartFilter;
+use crate::section::Section;
 
 /// An open container ready to trace: its reader (metadata, directory, proxies resident), the
 /// LOD kind the traversal stops on, and which parts it shows. Shared by the caches and the
@@ -21,6 +22,8 @@ pub struct Scene {
     part_count: usize,
     /// See [`Scene::set_parts`].
     parts: RwLock<Arc<PartFilter>>,
+    /// See [`Scene::set_section`].
+    section: RwLock<Option<Section>>,
     /// The LOD representation the traversal stops on.
     lod: LodKind,
     /// See [`Scene::node_bound`].
@@ -57,6 +60,7 @@ impl Scene {
             attrs,
             part_count,
             parts: RwLock::new(Arc::new(PartFilter::none())),
+            section: RwLock::new(None),
             lod,
             node_bound,
         }
@@ -103,10 +107,36 @@ impl Scene {
         *at = Arc::new(filter);
     }
 
+    /// [`Scene::set_parts`] with a filter already shared: a live view keeps its own and sets
+    /// it before each of its frames without copying it.
+    pub fn set_shared_parts(&self, filter: Arc<PartFilter>) {
+        let mut at = self.parts.write().unwrap_or_else(|e| e.into_inner());
+        *at = filter;
+    }
+
     /// The part filter frames use now ([`Scene::set_parts`]; none at open).
     pub fn parts(&self) -> Arc<PartFilter> {
         let at = self.parts.read().unwrap_or_else(|e| e.into_inner());
         Arc::clone(&at)
+    }
+
+    /// The section plane frames clip their primary rays with from now on (world
+    /// coordinates; None: no cut; [`crate::section`]). Read once at a frame's start, like the
+    /// part filter; every pick honours it too.
+    pub fn set_section(&self, section: Option<Section>) {
+        let mut at = self.section.write().unwrap_or_else(|e| e.into_inner());
+        *at = section;
+    }
+
+    /// The section plane frames use now ([`Scene::set_section`]; none at open).
+    pub fn section(&self) -> Option<Section> {
+        *self.section.read().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The section plane in stored coordinates, as the rays are ([`Section::in_stored`]).
+    pub fn stored_section(&self) -> Option<Section> {
+        self.section()
+            .map(|s| s.in_stored(self.metadata().scene.origin))
     }
 
     /// The container's metadata: the scene's bounds and origin, the schema, the root.

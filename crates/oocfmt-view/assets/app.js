@@ -46,6 +46,12 @@
   // latency of a frame showing a camera first, and the header.
   const frameLog = [];
   let lastSentMs = null;
+  // The section plane: off (''), along an axis ('x', 'y', 'z': the slider runs over the model's
+  // box) or through a picked point ('pick': the slider moves it along the normal, half the
+  // model's diagonal either way); `flip` keeps the other side.
+  const section = { mode: '', pos: 500, flip: false, at: null };
+  let sectionDirty = false;
+  let sectionSent = null;
 
   // Exposed for the browser tests and for people poking at the page.
   window.oocfmt = {
@@ -57,8 +63,16 @@
     get history() { return frameLog.slice(); },
     get picks() { return picks.slice(); },
     get lastSentMs() { return lastSentMs; },
+    get tree() {
+      return {
+        hidden: [...tree.hidden], isolated: tree.isolated, picked: tree.picked,
+        rows: tree.rows.size, shown: [...tree.rows.values()].filter((r) => r.el.isConnected && !hiddenRow(r)).length,
+      };
+    },
+    get section() { return sectionSent && JSON.parse(JSON.stringify(sectionSent)); },
     send: (obj) => ws && ws.readyState === 1 && ws.send(typeof obj === 'string' ? obj : JSON.stringify(obj)),
     pathJson: () => pathJson(),
+    onScreen: (p) => onScreen(p),
   };
 
   const notice = (text) => {
@@ -239,9 +253,182 @@
     dirty = false;
   }
 
+  // The plane the section control describes, world coordinates: keeps normal · p >= offset.
+  function sectionPlane() {
+    if (!model || !section.mode) return null;
+    const t = section.pos / 1000;
+    let normal, offset;
+    if (section.mode === 'pick') {
+      if (!section.at) return null;
+      // The picked normal faces the eye: keeping the side behind it cuts the surface away where
+      // it was clicked and opens the model there; a hair past the point, so the picked
+      // surface itself does not flicker on the plane.
+      normal = mul(section.at.normal, -1);
+      offset = dot(normal, section.at.point) + (t - 0.5) * diagonal() + 1e-5 * diagonal();
+    } else {
+      const k = 'xyz'.indexOf(section.mode);
+      normal = [0, 0, 0];
+      normal[k] = 1;
+      offset = model.bounds_min[k] + t * (model.bounds_max[k] - model.bounds_min[k]);
+    }
+    if (section.flip) { normal = mul(normal, -1); offset = -offset; }
+    return { normal, offset };
+  }
+
+  function showSection() {
+    const p = sectionPlane();
+    $('section-pos').disabled = !p;
+    $('section-flip').disabled = !p;
+    let text = '';
+    if (p && section.mode !== 'pick') {
+      const k = 'xyz'.indexOf(section.mode);
+      text = `${section.mode} ${p.normal[k] > 0 ? '≥' : '≤'} ${num(p.normal[k] * p.offset)}`;
+    } else if (p) {
+      text = `through ${vec(section.at.point)}`;
+    }
+    $('section-value').textContent = text;
+  }
+
+  function sendSection() {
+    if (!ws || ws.readyState !== 1) return;
+    sectionSent = sectionPlane();
+    sectionDirty = false;
+    ws.send(JSON.stringify({ type: 'section', plane: sectionSent }));
+  }
+
+  function setSectionMode(mode) {
+    if (mode === 'pick') {
+      const p = picks.slice().reverse().find((m) => m.hit);
+      if (!p) {
+        notice('Pick a point first: the section goes through it, along its normal.');
+        setTimeout(() => notice(''), 4000);
+        mode = '';
+      } else {
+        section.at = { point: p.hit.point, normal: p.hit.normal };
+      }
+    }
+    // A new plane starts in the middle, keeping the side its normal points to.
+    section.mode = mode;
+    section.pos = 500;
+    section.flip = false;
+    $('section-axis').value = mode;
+    $('section-pos').value = '500';
+    sectionDirty = true;
+    showSection();
+  }
+
   function sendQuality() {
     const poe = Number($('poe').value), spp = Math.round(Number($('spp').value));
     if (ws && ws.readyState === 1) ws.send(JSON.stringify({ type: 'quality', poe, spp }));
+  }
+
+  // ---- the model tree (files with parts): a level at a time, children asked for on expand
+  const tree = { hidden: new Set(), isolated: null, rows: new Map(), seq: 0, picked: null, opening: [] };
+  const hiddenRow = (r) => { for (let e = r.el.parentElement; e && e.id !== 'tree-rows'; e = e.parentElement) if (e.hidden) return true; return false; };
+
+  function askChildren(parent, offset) {
+    if (!ws || ws.readyState !== 1) return;
+    tree.seq += 1;
+    ws.send(JSON.stringify({ type: 'part_children', seq: tree.seq, parent, offset }));
+  }
+
+  function partRow(c) {
+    const el = document.createElement('div');
+    el.className = 'part';
+    const line = document.createElement('div');
+    line.className = 'line';
+    line.dataset.id = String(c.id);
+    const toggle = document.createElement('span');
+    toggle.className = 'toggle';
+    toggle.textContent = c.children > 0 ? '▸' : '';
+    const show = document.createElement('input');
+    show.type = 'checkbox';
+    show.checked = !tree.hidden.has(c.id);
+    show.title = 'Shown (unticked: hidden, with what is under it)';
+    const name = document.createElement('span');
+    name.className = 'name';
+    name.textContent = c.name;
+    name.title = `part ${c.id}: ${c.name}`;
+    const tris = document.createElement('span');
+    tris.className = 'tris';
+    tris.textContent = c.triangles.toLocaleString('en');
+    const iso = document.createElement('button');
+    iso.textContent = 'isolate';
+    iso.title = 'Show only this part and what is under it (again: show all)';
+    line.append(toggle, show, name, tris, iso);
+    const kids = document.createElement('div');
+    kids.className = 'kids';
+    kids.hidden = true;
+    el.append(line, kids);
+    const r = { el, line, kids, toggle, show, item: c, open: false, loaded: false };
+    tree.rows.set(c.id, r);
+    toggle.addEventListener('click', () => expand(c.id, !r.open));
+    name.addEventListener('dblclick', () => expand(c.id, !r.open));
+    show.addEventListener('change', () => {
+      if (show.checked) tree.hidden.delete(c.id); else tree.hidden.add(c.id);
+      sendParts();
+    });
+    iso.addEventListener('click', () => {
+      tree.isolated = tree.isolated === c.id ? null : c.id;
+      sendParts();
+    });
+    if (tree.isolated === c.id) line.classList.add('isolated');
+    return el;
+  }
+
+  function expand(id, open) {
+    const r = tree.rows.get(id);
+    if (!r || r.item.children === 0) return;
+    if (open && !r.loaded) { r.loaded = true; askChildren(id, 0); }
+    r.open = open;
+    r.kids.hidden = !open;
+    r.toggle.textContent = open ? '▾' : '▸';
+  }
+
+  function onChildren(m) {
+    const box = m.parent === null ? $('tree-rows') : tree.rows.get(m.parent) && tree.rows.get(m.parent).kids;
+    if (!box) return;
+    const more = box.querySelector(':scope > .more');
+    if (more) more.remove();
+    for (const c of m.children) box.appendChild(partRow(c));
+    const next = m.offset + m.children.length;
+    if (next < m.total) {
+      const b = document.createElement('button');
+      b.className = 'more';
+      b.textContent = `${m.total - next} more…`;
+      b.addEventListener('click', () => { b.remove(); askChildren(m.parent, next); });
+      box.appendChild(b);
+    }
+    openTo();
+  }
+
+  // Opens the tree down the picked part's lineage, as its levels arrive, and marks the part.
+  function openTo() {
+    while (tree.opening.length) {
+      const id = tree.opening[0];
+      const r = tree.rows.get(id);
+      if (!r) return;
+      tree.opening.shift();
+      if (tree.opening.length) {
+        expand(id, true);
+      } else {
+        for (const p of document.querySelectorAll('#tree .line.picked')) p.classList.remove('picked');
+        r.line.classList.add('picked');
+        r.line.scrollIntoView({ block: 'nearest' });
+      }
+    }
+  }
+
+  function sendParts() {
+    if (!ws || ws.readyState !== 1) return;
+    const isolate = tree.isolated === null ? [] : [tree.isolated];
+    ws.send(JSON.stringify({ type: 'parts', hide: [...tree.hidden], isolate }));
+    for (const r of tree.rows.values()) {
+      r.line.classList.toggle('isolated', tree.isolated === r.item.id);
+      r.show.checked = !tree.hidden.has(r.item.id);
+    }
+    const n = tree.hidden.size;
+    $('tree-state').textContent = (n ? `${n} hidden` : '') + (tree.isolated !== null ? `${n ? ' · ' : ''}isolated` : '');
   }
 
   // ---- receiving
@@ -253,10 +440,23 @@
       $('poe').value = String(m.quality.poe);
       $('spp').value = String(m.quality.spp);
       loadBookmarks();
+      if (m.model.parts > 0) {
+        $('tree-toggle').hidden = false;
+        $('tree').hidden = false;
+        askChildren(null, 0);
+      }
       resize();
       cam = fromHash(location.hash);
       if (cam) changed(); else standard('iso');
+    } else if (m.type === 'part_children') {
+      onChildren(m);
     } else if (m.type === 'pick') {
+      if (m.lineage && m.lineage.length) {
+        tree.picked = m.lineage[m.lineage.length - 1];
+        tree.opening = m.lineage.slice();
+        openTo();
+      }
+      if (m.hit) snap(m);
       picks.push(m);
       if (picks.length > 100) picks.shift();
       showPick();
@@ -318,8 +518,9 @@
     let text = `pick ${m.x},${m.y}: distance ${num(h.distance)} · point ${vec(h.point)} · normal ${vec(h.normal)}`;
     if (h.part_name !== null && h.part_name !== undefined) text += ` · part ${h.part_path || h.part_name}`;
     if (h.lod) text += ' · LOD entry (PoE > 0)';
+    if (m.snapped) text += ` · snapped to the vertex ${vec(m.measured)}`;
     const before = picks.slice(0, -1).reverse().find((p) => p.hit);
-    if (before) text += ` · from the pick before: ${num(len(sub(h.point, before.hit.point)))}`;
+    if (before) text += ` · from the pick before: ${num(len(sub(m.measured, before.measured)))}`;
     el.textContent = text;
   }
 
@@ -330,16 +531,37 @@
   }
 
   // The last two picked points over the frame, joined by the measured line.
+  // Where world point `p` is in the image, in image pixels; null behind the eye.
+  function onScreen(p) {
+    if (!cam) return null;
+    const b = basis(cam);
+    const d = sub(p, cam.eye);
+    const z = dot(d, b.f);
+    if (z <= 0) return null;
+    return [dot(d, b.r) / (z * b.pixel) + size[0] / 2, size[1] / 2 - dot(d, b.u) / (z * b.pixel)];
+  }
+
+  // A measure snaps to the hit triangle's nearest corner when it is within SNAP_PX screen
+  // pixels of the click (full detail only: a LOD entry has no corners).
+  const SNAP_PX = 6;
+  function snap(m) {
+    m.measured = m.hit.point;
+    m.snapped = false;
+    if (!m.hit.corners) return;
+    const scale = canvas.clientWidth > 0 ? canvas.width / canvas.clientWidth : 1;
+    let best = null;
+    for (const c of m.hit.corners) {
+      const s = onScreen(c);
+      if (!s) continue;
+      const d = Math.hypot(s[0] - (m.x + 0.5), s[1] - (m.y + 0.5)) / scale;
+      if (d <= SNAP_PX && (!best || d < best.d)) best = { d, c };
+    }
+    if (best) { m.measured = best.c; m.snapped = true; }
+  }
+
   function marks() {
     if (!cam) return;
-    const b = basis(cam);
-    const onScreen = (p) => {
-      const d = sub(p, cam.eye);
-      const z = dot(d, b.f);
-      if (z <= 0) return null;
-      return [dot(d, b.r) / (z * b.pixel) + size[0] / 2, size[1] / 2 - dot(d, b.u) / (z * b.pixel)];
-    };
-    const pts = picks.filter((p) => p.hit).slice(-2).map((p) => onScreen(p.hit.point)).filter((p) => p);
+    const pts = picks.filter((p) => p.hit).slice(-2).map((p) => onScreen(p.measured || p.hit.point)).filter((p) => p);
     ctx.save();
     ctx.strokeStyle = '#ff9a3c';
     ctx.lineWidth = 2;
@@ -465,6 +687,23 @@
   });
   $('poe').addEventListener('change', sendQuality);
   $('spp').addEventListener('change', sendQuality);
+  $('section-axis').addEventListener('change', (e) => setSectionMode(e.target.value));
+  $('section-pos').addEventListener('input', (e) => {
+    section.pos = Number(e.target.value);
+    sectionDirty = true;
+    showSection();
+  });
+  $('section-flip').addEventListener('click', () => {
+    section.flip = !section.flip;
+    sectionDirty = true;
+    showSection();
+  });
+  $('tree-toggle').addEventListener('click', () => { $('tree').hidden = !$('tree').hidden; });
+  $('tree-all').addEventListener('click', () => {
+    tree.hidden.clear();
+    tree.isolated = null;
+    sendParts();
+  });
   $('help-toggle').addEventListener('click', () => { $('help').hidden = !$('help').hidden; });
 
   function download(blob, name) {
@@ -528,6 +767,7 @@
     fly(dt);
     resize();
     if (dirty) sendCamera();
+    if (sectionDirty) sendSection();
     requestAnimationFrame(tick);
   }
 

@@ -9,6 +9,7 @@
 //! - [`protocol`]: the messages ([`protocol::ClientMessage`], [`protocol::ServerMessage`],
 //!   the binary frame layout).
 //! - [`encode`]: JPEG while moving, PNG for the last frame of a still view.
+//! - [`tree`]: the part tree as the page's model tree reads it.
 //! - [`assets`]: the page, its script and its style.
 //!
 //! Threads: tokio's runtime (two workers) runs the server and the sockets; frames are
@@ -25,6 +26,7 @@ pub mod protocol;
 pub mod server;
 pub mod socket;
 pub mod token;
+pub mod tree;
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::sync::Arc;
@@ -138,12 +140,14 @@ pub async fn start(viewer: Arc<Viewer>, config: &ViewConfig) -> Result<Running, 
     let (stop, shutdown) = watch::channel(false);
     let mut on_stop = shutdown.clone();
     let url = format!("http://{addr}/?token={}", token.as_str());
+    let viewer_parts = viewer.scene().metadata().parts.clone();
     let app = Arc::new(App {
         hello: hello(&viewer, config),
         viewer,
         token: token.clone(),
         quality: config.quality,
         shutdown,
+        tree: tree::PartIndex::new(&viewer_parts),
     });
     let router = server::router(app);
     let task = tokio::spawn(async move {

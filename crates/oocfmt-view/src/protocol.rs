@@ -11,7 +11,9 @@ use serde::{Deserialize, Serialize};
 
 use oocfmt_trace::live::{LiveFigures, Quality};
 use oocfmt_trace::pick::Pick;
-use oocfmt_trace::Camera;
+use oocfmt_trace::{Camera, Section};
+
+use crate::tree::PartItem;
 
 /// The longest text message the page may send; longer ones are answered with an error.
 pub const MAX_MESSAGE: usize = 4096;
@@ -50,6 +52,34 @@ pub enum ClientMessage {
         /// Samples per pixel.
         spp: u32,
     },
+    /// The view's section plane, world coordinates: keeps `normal · p ≥ offset`; null (or
+    /// left out): no cut. A zero or non-finite normal is refused.
+    Section {
+        /// The plane, or null.
+        plane: Option<Section>,
+    },
+    /// Which parts the view shows, by id (the model tree): `hide` hides those parts,
+    /// `isolate` (when not empty) every part outside it, each with its descendants; both empty
+    /// shows every part. An id past the part table is refused.
+    Parts {
+        /// Parts to hide.
+        #[serde(default)]
+        hide: Vec<u32>,
+        /// Parts to show alone.
+        #[serde(default)]
+        isolate: Vec<u32>,
+    },
+    /// The children of a part (null: the top-level parts), from `offset`, answered with a
+    /// `part_children` message of at most [`crate::tree::MAX_CHILDREN`].
+    PartChildren {
+        /// Echoed by the answer.
+        seq: u64,
+        /// The part, or null for the top level.
+        parent: Option<u32>,
+        /// How many children to skip.
+        #[serde(default)]
+        offset: u32,
+    },
     /// What a pixel of the full-size image shows (answered with a `pick` message).
     Pick {
         /// Echoed by the answer.
@@ -84,7 +114,11 @@ impl ClientMessage {
                 },
                 seq,
             )),
-            ClientMessage::Quality { .. } | ClientMessage::Pick { .. } => None,
+            ClientMessage::Quality { .. }
+            | ClientMessage::Pick { .. }
+            | ClientMessage::Section { .. }
+            | ClientMessage::Parts { .. }
+            | ClientMessage::PartChildren { .. } => None,
         }
     }
 }
@@ -149,6 +183,22 @@ pub enum ServerMessage {
         y: u32,
         /// What its centre ray met first (world coordinates); null on the background.
         hit: Option<Pick>,
+        /// The picked part's ancestors from the top level down, then the part (empty without
+        /// a part), for the model tree to open down to it.
+        lineage: Vec<u32>,
+    },
+    /// The answer to a `part_children` message.
+    PartChildren {
+        /// The request's number.
+        seq: u64,
+        /// The part asked about, or null for the top level.
+        parent: Option<u32>,
+        /// The offset asked for.
+        offset: u32,
+        /// How many children there are in all.
+        total: usize,
+        /// The children from `offset`, at most [`crate::tree::MAX_CHILDREN`].
+        children: Vec<PartItem>,
     },
     /// A message was refused, or a frame could not be rendered.
     Error {
@@ -207,6 +257,18 @@ mod tests {
             ),
             "{m:?}"
         );
+        let s: Result<ClientMessage, _> =
+            serde_json::from_str(r#"{"type":"section","plane":{"normal":[0,0,2],"offset":1}}"#);
+        assert!(
+            matches!(&s, Ok(ClientMessage::Section { plane: Some(p) }) if p.offset == 1.0),
+            "{s:?}"
+        );
+        let s: Result<ClientMessage, _> =
+            serde_json::from_str(r#"{"type":"section","plane":null}"#);
+        assert!(
+            matches!(s, Ok(ClientMessage::Section { plane: None })),
+            "{s:?}"
+        );
         let q: Result<ClientMessage, _> =
             serde_json::from_str(r#"{"type":"quality","poe":1.5,"spp":4}"#);
         assert!(
@@ -220,6 +282,13 @@ mod tests {
             r#"{"type":"quality","poe":"x","spp":4}"#,
             r#"{"type":"quality","poe":1,"spp":-4}"#,
             r#"{"type":"camera","seq":1}"#,
+            r#"{"type":"section","plane":{"normal":[1,0,0]}}"#,
+            r#"{"type":"section","plane":{"normal":[1,0,0],"offset":1,"x":2}}"#,
+            r#"{"type":"section","plane":{"normal":[1,0],"offset":1}}"#,
+            r#"{"type":"parts","hide":[-1]}"#,
+            r#"{"type":"parts","hide":"all"}"#,
+            r#"{"type":"parts","show":[1]}"#,
+            r#"{"type":"part_children","parent":1}"#,
             "[]",
             "not json",
         ] {

@@ -12,10 +12,13 @@ use futures_util::{SinkExt, StreamExt};
 use tokio::sync::{mpsc, watch};
 
 use oocfmt_trace::live::{Event, LiveFrame, Quality, Sink, ViewId, Viewer};
+use oocfmt_trace::parts::PartFilter;
+use oocfmt_trace::Section;
 
 use crate::encode::{self, MovingQuality};
 use crate::protocol::{frame_message, ClientMessage, FrameHeader, ServerMessage, MAX_MESSAGE};
 use crate::token::Token;
+use crate::tree::PartIndex;
 
 /// What every connection shares.
 pub struct App {
@@ -29,6 +32,8 @@ pub struct App {
     pub quality: Quality,
     /// Becomes true when the server stops.
     pub shutdown: watch::Receiver<bool>,
+    /// The file's part tree, for the model tree's messages.
+    pub tree: PartIndex,
 }
 
 /// The newest frame of a view and its number (counting every frame the view was given).
@@ -50,17 +55,20 @@ pub async fn serve(socket: WebSocket, app: Arc<App>) {
     let (ctl_tx, ctl_rx) = mpsc::unbounded_channel::<String>();
     let texts = ctl_tx.clone();
     let mut given = 0u64;
+    let tree_app = Arc::clone(&app);
     let sink: Sink = Box::new(move |e| match e {
         Event::Frame(f) => {
             given += 1;
             frames_tx.send_replace(Some((given, f)));
         }
         Event::Pick(p) => {
+            let part = p.hit.as_ref().and_then(|h| h.part);
             let m = ServerMessage::Pick {
                 seq: p.seq,
                 x: p.pixel.0,
                 y: p.pixel.1,
                 hit: p.hit,
+                lineage: part.map_or_else(Vec::new, |q| tree_app.tree.lineage(q)),
             };
             let _ = texts
                 .send(serde_json::to_string(&m).unwrap_or_else(|e| error_json(&e.to_string())));
@@ -100,7 +108,15 @@ async fn receive_loop(
         };
         let refused = match msg {
             None | Some(Err(_)) | Some(Ok(Message::Close(_))) => break,
-            Some(Ok(Message::Text(t))) => handle(app, id, t.as_str()).err(),
+            Some(Ok(Message::Text(t))) => match handle(app, id, t.as_str()) {
+                Ok(reply) => {
+                    if let Some(r) = reply {
+                        let _ = ctl.send(r);
+                    }
+                    None
+                }
+                Err(why) => Some(why),
+            },
             Some(Ok(Message::Binary(b))) => Some(format!(
                 "a binary message of {} bytes refused: messages are JSON text",
                 b.len()
@@ -114,7 +130,7 @@ async fn receive_loop(
 }
 
 /// Checks one text message and passes it to the viewer; the error says why it was refused.
-fn handle(app: &App, id: ViewId, text: &str) -> Result<(), String> {
+fn handle(app: &App, id: ViewId, text: &str) -> Result<Option<String>, String> {
     if text.len() > MAX_MESSAGE {
         return Err(format!(
             "a message of {} bytes refused: the limit is {MAX_MESSAGE}",
@@ -127,18 +143,56 @@ fn handle(app: &App, id: ViewId, text: &str) -> Result<(), String> {
         return app
             .viewer
             .camera(id, camera, seq)
+            .map(|()| None)
             .map_err(|e| format!("camera {seq} refused: {e}"));
     }
     match m {
         ClientMessage::Quality { poe, spp } => app
             .viewer
             .quality(id, Quality { poe, spp })
+            .map(|()| None)
             .map_err(|e| format!("quality refused: {e}")),
         ClientMessage::Pick { seq, x, y } => {
             app.viewer.pick(id, seq, (x, y));
-            Ok(())
+            Ok(None)
         }
-        ClientMessage::Camera { .. } => Ok(()),
+        ClientMessage::Section { plane } => {
+            // Normalised and checked here: a plane the tracer cannot use changes nothing.
+            let plane = plane
+                .map(|p| Section::new(p.normal, p.offset))
+                .transpose()
+                .map_err(|e| format!("section refused: {e}"))?;
+            app.viewer.section(id, plane);
+            Ok(None)
+        }
+        ClientMessage::Parts { hide, isolate } => {
+            let parts = &app.viewer.scene().metadata().parts;
+            let filter = PartFilter::from_ids(parts, &hide, &isolate, &[])
+                .map_err(|e| format!("parts refused: {e}"))?;
+            app.viewer.parts(id, filter);
+            Ok(None)
+        }
+        ClientMessage::PartChildren {
+            seq,
+            parent,
+            offset,
+        } => {
+            let (total, children) = app
+                .tree
+                .children(parent, offset as usize)
+                .map_err(|e| format!("part_children {seq} refused: {e}"))?;
+            let m = ServerMessage::PartChildren {
+                seq,
+                parent,
+                offset,
+                total,
+                children,
+            };
+            serde_json::to_string(&m)
+                .map(Some)
+                .map_err(|e| format!("part_children {seq}: {e}"))
+        }
+        ClientMessage::Camera { .. } => Ok(None),
     }
 }
 

@@ -476,3 +476,107 @@ async fn several_tabs_get_their_own_frames_and_stop_closes_them() {
         "the port still accepts connections"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_section_message_cuts_the_still_frame_and_a_bad_plane_is_refused() {
+    let f = serve().await;
+    let (addr, token) = (f.running.addr(), f.running.token().to_string());
+    let origin = format!("http://{addr}");
+    let mut ws = socket(addr, &format!("?token={token}"), Some(&origin))
+        .await
+        .unwrap();
+    assert_eq!(next_text(&mut ws).await["type"], "hello");
+    let m = f.scene.metadata();
+    let c = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, 96, 72);
+    ws.send(Message::Text(camera_json(&f.scene, &c, 1).into()))
+        .await
+        .unwrap();
+    let (_, whole_png) = until_last(&mut ws, 1).await;
+    // The plane x = the box's middle (world coordinates), keeping the far half.
+    let mid = f64::from(m.scene.bounds_min[0] + m.scene.bounds_max[0]) / 2.0 + m.scene.origin[0];
+    let plane = oocfmt_trace::Section::axis(0, mid).unwrap();
+    let text = serde_json::json!({"type": "section", "plane": plane}).to_string();
+    ws.send(Message::Text(text.into())).await.unwrap();
+    let (_, cut_png) = until_last(&mut ws, 1).await;
+    // The reference from a scene of its own: the server's views set their planes on theirs.
+    let reference = Arc::new(Scene::open(&f._dir.path().join("mb.oocf")).unwrap());
+    reference.set_section(Some(plane));
+    let blocking = BlockingCache::new(Arc::clone(&reference), 64 << 20);
+    let camera = round_trip(&f.scene, &c);
+    let (want, _) = render(&reference, &blocking, &camera, &RenderOptions::DEFAULT).unwrap();
+    let (_, _, rgb) = png_rgb(&cut_png);
+    assert!(
+        rgb == want.rgb,
+        "the cut still frame differs from render --section"
+    );
+    assert_ne!(png_rgb(&whole_png).2, rgb, "the plane cut something away");
+    // A plane that is not one is refused and changes nothing.
+    for bad in [
+        r#"{"type":"section","plane":{"normal":[0,0,0],"offset":1}}"#,
+        r#"{"type":"section","plane":{"normal":[1,0,0],"offset":"x"}}"#,
+    ] {
+        ws.send(Message::Text(bad.into())).await.unwrap();
+        let e = next_text(&mut ws).await;
+        assert_eq!(e["type"], "error", "{bad}: {e}");
+    }
+    match tokio::time::timeout(Duration::from_millis(400), ws.next()).await {
+        Err(_) => {}
+        Ok(m) => panic!("a refused section changed something: {m:?}"),
+    }
+    // No plane: the whole model again.
+    ws.send(Message::Text(r#"{"type":"section","plane":null}"#.into()))
+        .await
+        .unwrap();
+    let (_, again) = until_last(&mut ws, 1).await;
+    assert!(png_rgb(&again).2 == png_rgb(&whole_png).2);
+    f.running.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn tree_messages_are_answered_and_ids_past_the_part_table_refused() {
+    let f = serve().await;
+    let (addr, token) = (f.running.addr(), f.running.token().to_string());
+    let origin = format!("http://{addr}");
+    let mut ws = socket(addr, &format!("?token={token}"), Some(&origin))
+        .await
+        .unwrap();
+    assert_eq!(next_text(&mut ws).await["type"], "hello");
+    // The Mandelbulb has no parts: an empty top level, and any id is past the table.
+    ws.send(Message::Text(
+        r#"{"type":"part_children","seq":4,"parent":null}"#.into(),
+    ))
+    .await
+    .unwrap();
+    let top = next_text(&mut ws).await;
+    assert_eq!(
+        (
+            top["type"].as_str(),
+            top["seq"].as_u64(),
+            top["total"].as_u64()
+        ),
+        (Some("part_children"), Some(4), Some(0)),
+        "{top}"
+    );
+    for (text, says) in [
+        (
+            r#"{"type":"part_children","seq":5,"parent":0}"#,
+            "part_children 5 refused",
+        ),
+        (r#"{"type":"parts","hide":[0]}"#, "parts refused"),
+        (r#"{"type":"parts","isolate":[3]}"#, "parts refused"),
+    ] {
+        ws.send(Message::Text(text.into())).await.unwrap();
+        let e = next_text(&mut ws).await;
+        assert_eq!(e["type"], "error", "{text}: {e}");
+        assert!(e["message"].as_str().unwrap().contains(says), "{text}: {e}");
+    }
+    // Nothing hidden is a filter any file takes.
+    ws.send(Message::Text(r#"{"type":"parts","hide":[]}"#.into()))
+        .await
+        .unwrap();
+    match tokio::time::timeout(Duration::from_millis(300), ws.next()).await {
+        Err(_) => {}
+        Ok(m) => panic!("an empty parts message was answered: {m:?}"),
+    }
+    f.running.stop().await.unwrap();
+}

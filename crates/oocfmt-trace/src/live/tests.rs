@@ -327,3 +327,52 @@ fn a_pick_answers_what_the_still_frame_shows_at_that_pixel() {
     assert!(got[1].hit.is_none(), "the corner is background");
     assert_eq!(got[1].pixel, (0, 0));
 }
+
+#[test]
+fn a_sectioned_view_settles_on_the_sectioned_full_detail_image_and_keeps_its_plane_to_itself() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = mandelbulb(dir.path(), 8_000);
+    let (scene, cache) = Cache::open(
+        &path,
+        None,
+        CacheKind::Async,
+        256 << 20,
+        &AsyncOptions::default(),
+        None,
+    )
+    .unwrap();
+    let m = scene.metadata();
+    let mid = (m.scene.bounds_min[0] + m.scene.bounds_max[0]) / 2.0;
+    let plane = crate::Section::axis(0, f64::from(mid) + m.scene.origin[0]).unwrap();
+    let q = Quality { poe: 0.0, spp: 1 };
+    let camera = framing(&scene, 96, 72);
+    let mut cut = LiveView::new(FAST, RenderOptions::DEFAULT, q).unwrap();
+    cut.set_camera(camera, 1, Instant::now()).unwrap();
+    cut.set_section(Some(plane), Instant::now());
+    let mut whole = LiveView::new(FAST, RenderOptions::DEFAULT, q).unwrap();
+    whole.set_camera(camera, 1, Instant::now()).unwrap();
+    let cut_last = run_to_end(&mut cut, &scene, &cache).pop().unwrap();
+    let whole_last = run_to_end(&mut whole, &scene, &cache).pop().unwrap();
+    assert!(cut_last.figures.last && whole_last.figures.last);
+    let blocking = BlockingCache::new(Arc::clone(&scene), 256 << 20);
+    scene.set_section(Some(plane));
+    let (want_cut, _) = render(&scene, &blocking, &camera, &RenderOptions::DEFAULT).unwrap();
+    scene.set_section(None);
+    let (want_whole, _) = render(&scene, &blocking, &camera, &RenderOptions::DEFAULT).unwrap();
+    assert_ne!(
+        want_cut.rgb, want_whole.rgb,
+        "the plane cuts the model in view"
+    );
+    assert!(
+        cut_last.image.rgb == want_cut.rgb,
+        "the cut view's still frame"
+    );
+    assert!(
+        whole_last.image.rgb == want_whole.rgb,
+        "the other view is not cut"
+    );
+    // Taking the plane away refines again, to the whole model.
+    cut.set_section(None, Instant::now());
+    let again = run_to_end(&mut cut, &scene, &cache).pop().unwrap();
+    assert!(again.image.rgb == want_whole.rgb);
+}

@@ -2,14 +2,17 @@
 //! image. [`LiveView::next`] says what to render, [`LiveView::render`] renders it through a
 //! session cache and returns the frame to show with its figures.
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
 use super::accumulate::{jitter, jittered, Accumulator};
 use super::schedule::{LiveOptions, Next, Outcome, Plan, Quality, Schedule, Stage};
+use crate::parts::PartFilter;
 use crate::pick::{pick, Pick};
 use crate::render::{Endings, Image, RenderOptions, MAX_SAMPLES};
+use crate::section::Section;
 use crate::session::{self, Cache};
 use crate::{Camera, Scene, TraceError};
 
@@ -125,6 +128,10 @@ pub struct LiveView {
     /// Everything of a frame's options but the PoE and the samples.
     base: RenderOptions,
     accum: Option<Accumulator>,
+    /// The view's section plane, world coordinates ([`LiveView::set_section`]).
+    section: Option<Section>,
+    /// The view's part filter ([`LiveView::set_parts`]).
+    parts: Arc<PartFilter>,
 }
 
 /// The camera's problem, or its pixel count.
@@ -178,6 +185,8 @@ impl LiveView {
             seq: 0,
             base,
             accum: None,
+            section: None,
+            parts: Arc::new(PartFilter::none()),
         })
     }
 
@@ -195,6 +204,48 @@ impl LiveView {
         self.accum = None;
         self.schedule.camera(now, pixels);
         Ok(())
+    }
+
+    /// The view's section plane (world coordinates; None: no cut) changed at `now`: the
+    /// picture starts refining again, as after a camera move. The view sets it on the scene
+    /// before each of its frames and picks ([`Scene::set_section`]): the views of one scene
+    /// render one at a time, so each sees its own.
+    pub fn set_section(&mut self, section: Option<Section>, now: Instant) {
+        if section == self.section {
+            return;
+        }
+        self.section = section;
+        self.accum = None;
+        if let Some(c) = &self.camera {
+            self.schedule
+                .camera(now, u64::from(c.width) * u64::from(c.height));
+        }
+    }
+
+    /// The view's section plane.
+    pub fn section(&self) -> Option<Section> {
+        self.section
+    }
+
+    /// The view's part filter (made for the scene's part table) changed at `now`: the picture
+    /// refines again. Set on the scene before each of the view's frames and picks, as the
+    /// section plane is.
+    pub fn set_parts(&mut self, filter: Arc<PartFilter>, now: Instant) {
+        if *filter == *self.parts {
+            return;
+        }
+        self.parts = filter;
+        self.accum = None;
+        if let Some(c) = &self.camera {
+            self.schedule
+                .camera(now, u64::from(c.width) * u64::from(c.height));
+        }
+    }
+
+    /// Sets the view's section plane and part filter on `scene`.
+    fn put_on(&self, scene: &Scene) {
+        scene.set_section(self.section);
+        scene.set_shared_parts(Arc::clone(&self.parts));
     }
 
     /// The quality asked for changed; refused (changing nothing) when out of range.
@@ -232,6 +283,7 @@ impl LiveView {
         let camera = self
             .camera
             .ok_or_else(|| TraceError::Camera("the view has no camera yet".into()))?;
+        self.put_on(scene);
         pick(
             scene,
             cache.get(),
@@ -277,6 +329,7 @@ impl LiveView {
             spp: 1,
             ..self.base
         };
+        self.put_on(scene);
         let frame = session::frame(scene, cache.get(), &camera, &opts)?;
         if let Some(ac) = cache.as_async() {
             ac.idle();

@@ -14,8 +14,10 @@ use std::time::Instant;
 
 use super::schedule::{LiveOptions, Next, Plan, Quality};
 use super::view::{check_camera, check_quality, LiveFrame, LiveView, LoadRate};
+use crate::parts::PartFilter;
 use crate::pick::Pick;
 use crate::render::RenderOptions;
+use crate::section::Section;
 use crate::session::{stored_point, Cache};
 use crate::{Camera, Scene, TraceError};
 
@@ -56,6 +58,10 @@ struct Slot {
     /// A camera (stored coordinates) not yet given to the view, its number and arrival.
     camera: Option<(Camera, u64, Instant)>,
     quality: Option<Quality>,
+    /// A section plane not yet given to the view (the inner None: no cut).
+    section: Option<Option<Section>>,
+    /// A part filter not yet given to the view.
+    parts: Option<Arc<PartFilter>>,
     /// Picks not yet made: the caller's numbers and pixels.
     picks: Vec<(u64, (u32, u32))>,
 }
@@ -150,6 +156,8 @@ impl Viewer {
                 view: Some((view, sink)),
                 camera: None,
                 quality: None,
+                section: None,
+                parts: None,
                 picks: Vec::new(),
             },
         );
@@ -186,6 +194,28 @@ impl Viewer {
         drop(st);
         self.shared.wake.notify_all();
         Ok(())
+    }
+
+    /// The view's section plane, world coordinates (None: no cut; [`crate::section`]): it
+    /// replaces any plane the view has not taken up yet, and the picture refines again.
+    pub fn section(&self, id: ViewId, section: Option<Section>) {
+        let mut st = self.shared.lock();
+        if let Some(slot) = st.views.get_mut(&id) {
+            slot.section = Some(section);
+        }
+        drop(st);
+        self.shared.wake.notify_all();
+    }
+
+    /// The view's part filter (made for the scene's part table, [`PartFilter::from_ids`]): it
+    /// replaces any filter the view has not taken up yet, and the picture refines again.
+    pub fn parts(&self, id: ViewId, filter: PartFilter) {
+        let mut st = self.shared.lock();
+        if let Some(slot) = st.views.get_mut(&id) {
+            slot.parts = Some(Arc::new(filter));
+        }
+        drop(st);
+        self.shared.wake.notify_all();
     }
 
     /// Asks what pixel `pixel` of the view's full-size image shows (after the camera and
@@ -233,6 +263,12 @@ fn take_inbox(slot: &mut Slot) {
         if let Err(e) = view.set_quality(q) {
             sink(Event::Error(e.to_string()));
         }
+    }
+    if let Some(section) = slot.section.take() {
+        view.set_section(section, Instant::now());
+    }
+    if let Some(filter) = slot.parts.take() {
+        view.set_parts(filter, Instant::now());
     }
     if let Some((camera, seq, at)) = slot.camera.take() {
         if let Err(e) = view.set_camera(camera, seq, at) {
