@@ -208,7 +208,8 @@ fn a_deep_tree_with_same_named_siblings_and_odd_names_survives_obj() -> Res {
     std::fs::write(&obj, "v 0 0 9\nv 1 0 9\nv 0 1 9\no fin\nf 1 2 3\n")?;
     let first = dir.path().join("a.oocf");
     let meta = convert_to(&[gltf.clone(), obj.clone()], &first)?;
-    let (g, o) = (gltf.display().to_string(), obj.display().to_string());
+    // File parts are named by the file name; the path is the source.
+    let (g, o) = ("wing.gltf".to_string(), "tail.obj".to_string());
     assert_eq!(
         tree(&meta.parts),
         [
