@@ -205,28 +205,7 @@ impl PartFilter {
         let hide = resolve("--hide", &sel.hide)?;
         let isolate = resolve("--isolate", &sel.isolate)?;
         let highlight = resolve("--highlight", &sel.highlight)?;
-        let at = |v: &Option<Vec<bool>>, i: usize| v.as_ref().and_then(|v| v.get(i).copied());
-        let states: Vec<PartState> = (0..parts.len())
-            .map(|i| {
-                let hidden = at(&hide, i).unwrap_or(false) || !at(&isolate, i).unwrap_or(true);
-                if hidden {
-                    PartState::Hidden
-                } else if at(&highlight, i).unwrap_or(false) {
-                    PartState::Highlighted
-                } else {
-                    PartState::Visible
-                }
-            })
-            .collect();
-        let count = |s| states.iter().filter(|&&x| x == s).count();
-        let hidden = count(PartState::Hidden);
-        Ok(PartFilter {
-            id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
-            hidden,
-            highlighted: count(PartState::Highlighted),
-            grid: (hidden > 0).then(|| visible_grid(parts, &states)).flatten(),
-            states,
-        })
+        Ok(PartFilter::from_marks(parts, hide, isolate, highlight))
     }
 
     /// The filter of part ids (a viewer's model tree, which names parts by id, not by glob):
@@ -258,6 +237,17 @@ impl PartFilter {
             Ok(Some(all))
         };
         let (hide, isolate, highlight) = (marks(hide)?, marks(isolate)?, marks(highlight)?);
+        Ok(PartFilter::from_marks(parts, hide, isolate, highlight))
+    }
+
+    /// The filter of per-part marks (`None`: that selection is empty): hidden where hidden or
+    /// outside a non-empty isolation, else highlighted where marked, else visible.
+    fn from_marks(
+        parts: &[Part],
+        hide: Option<Vec<bool>>,
+        isolate: Option<Vec<bool>>,
+        highlight: Option<Vec<bool>>,
+    ) -> PartFilter {
         let at = |v: &Option<Vec<bool>>, i: usize| v.as_ref().and_then(|v| v.get(i).copied());
         let states: Vec<PartState> = (0..parts.len())
             .map(|i| {
@@ -272,13 +262,13 @@ impl PartFilter {
             .collect();
         let count = |s| states.iter().filter(|&&x| x == s).count();
         let hidden = count(PartState::Hidden);
-        Ok(PartFilter {
+        PartFilter {
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             hidden,
             highlighted: count(PartState::Highlighted),
             grid: (hidden > 0).then(|| visible_grid(parts, &states)).flatten(),
             states,
-        })
+        }
     }
 
     /// The grid of the visible parts' boxes, when some part is hidden (None also when a
