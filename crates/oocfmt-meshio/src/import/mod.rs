@@ -275,6 +275,23 @@ pub(crate) fn open_buffered(
     Ok((name, std::io::BufReader::with_capacity(1 << 16, file)))
 }
 
+/// Starts reading `input` (a whole file, named `name`) into `sink`: records the file and
+/// returns its length, the reader back at its start.
+pub(crate) fn begin_seekable<R: std::io::Seek>(
+    input: &mut R,
+    name: &str,
+    sink: &mut dyn TriangleSink,
+) -> Result<u64, ImportError> {
+    sink.begin_file(name);
+    let io = |source| ImportError::Io {
+        path: name.to_string(),
+        source,
+    };
+    let len = input.seek(std::io::SeekFrom::End(0)).map_err(io)?;
+    input.seek(std::io::SeekFrom::Start(0)).map_err(io)?;
+    Ok(len)
+}
+
 /// Receives an importer's output.
 pub trait TriangleSink {
     /// Adds a material; returns the index that triangles give as `material`.

@@ -28,7 +28,7 @@ mod header;
 mod scalar;
 mod vertices;
 
-use std::io::{BufRead, Seek, SeekFrom};
+use std::io::{BufRead, Seek};
 use std::path::Path;
 
 use body::{Ascii, Binary, Body};
@@ -82,13 +82,7 @@ pub fn import_from<R: BufRead + Seek>(
     sink: &mut dyn TriangleSink,
     opts: &PlyOptions,
 ) -> Result<(), ImportError> {
-    sink.begin_file(name);
-    let io = |source| ImportError::Io {
-        path: name.to_string(),
-        source,
-    };
-    let len = input.seek(SeekFrom::End(0)).map_err(io)?;
-    input.seek(SeekFrom::Start(0)).map_err(io)?;
+    let len = super::begin_seekable(&mut input, name, sink)?;
     let mut lines = Lines::new(input, opts.max_line_bytes, 0, 0);
     let mut header = header::read(&mut lines, name, opts)?;
     let start = lines.offset();

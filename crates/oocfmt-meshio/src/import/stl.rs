@@ -83,13 +83,11 @@ pub fn import_from<R: BufRead + Seek>(
     sink: &mut dyn TriangleSink,
     opts: &StlOptions,
 ) -> Result<(), ImportError> {
-    sink.begin_file(name);
+    let len = super::begin_seekable(&mut input, name, sink)?;
     let io = |source| ImportError::Io {
         path: name.to_string(),
         source,
     };
-    let len = input.seek(SeekFrom::End(0)).map_err(io)?;
-    input.seek(SeekFrom::Start(0)).map_err(io)?;
     let mut head = [0u8; BINARY_HEAD as usize];
     if len < BINARY_HEAD {
         let note = format!(
