@@ -8,7 +8,8 @@ import subprocess
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.join(ROOT, "target", "release", "oocfmt")
+# OOCFMT_BIN runs another build (say, a copy of an older one to compare with).
+BIN = os.environ.get("OOCFMT_BIN") or os.path.join(ROOT, "target", "release", "oocfmt")
 
 
 def require_binary():
