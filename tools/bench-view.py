@@ -14,6 +14,7 @@ Needs the browser tests' venv (tools/browser-tests.sh makes it) and /usr/bin/chr
 """
 
 import argparse
+import os
 import pathlib
 import signal
 import statistics
@@ -73,6 +74,21 @@ def phase(page, name, seconds, target):
     )
     if lat:
         print(f"  camera-to-frame latency median {statistics.median(lat):.0f} ms, p95 {pct(lat, 0.95):.0f} ms")
+    full = [
+        h
+        for h in hist
+        if final
+        and h["at"] > stop
+        and h["header"]["figures"]["blocks_missed"] == 0
+        and h["header"]["figures"]["stage"] in ("settle", "accumulate", "done")
+        and h["header"]["figures"]["width"] == final[-1]["header"]["figures"]["width"]
+    ]
+    if full:
+        f0 = full[0]["header"]["figures"]
+        print(
+            f"  stop to the first full-size frame missing no block {full[0]['at'] - stop:.0f} ms "
+            f"(PoE {f0['poe']}, stage {f0['stage']}, {full[0]['header']['bytes']} bytes)"
+        )
     if final:
         last = final[-1]
         h = last["header"]
@@ -91,7 +107,15 @@ def main():
     ap.add_argument("--seconds", type=float, default=6.0)
     ap.add_argument("--target-ms", type=float, default=66.0)
     ap.add_argument("--view-args", default="", help="more flags for oocfmt view, e.g. '--poe 0 --spp 4'")
+    ap.add_argument(
+        "--drop-caches", action="store_true", help="empty the page cache first (root, or sudo -n), so cold reads the disk"
+    )
     a = ap.parse_args()
+    if a.drop_caches:
+        drop = "sync && echo 3 > /proc/sys/vm/drop_caches"
+        cmd = ["sh", "-c", drop] if os.geteuid() == 0 else ["sudo", "-n", "sh", "-c", drop]
+        subprocess.run(cmd, check=True)
+        print("page cache dropped")
     w, h = (int(v) for v in a.size.lower().split("x"))
     cmd = [a.binary, "view", a.model, "--port", "0", "--target-ms", str(a.target_ms)] + a.view_args.split()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
