@@ -100,3 +100,16 @@ def page(browser):
     yield pg
     context.close()
     assert not errors, f"the page threw: {errors}"
+
+
+@pytest.fixture()
+def touch_page(browser):
+    """A page in a context with a touch screen, as a tablet's: touch events go through CDP
+    (`Input.dispatchTouchEvent`)."""
+    context = browser.new_context(viewport={"width": 640, "height": 480}, device_scale_factor=1, has_touch=True)
+    pg = context.new_page()
+    errors = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    yield pg
+    context.close()
+    assert not errors, f"the page threw: {errors}"

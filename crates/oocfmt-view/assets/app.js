@@ -599,45 +599,67 @@
   }
 
   // ---- the mouse, touch and keys
+  // Pointer Events, one path for the mouse, a pen and fingers. One pointer drags: orbit (pan
+  // with the right button or shift, look around with ctrl or alt). Two fingers pinch: the change
+  // in their distance zooms to their midpoint, the midpoint's movement pans. A gesture that
+  // ever had two pointers does not pick when it ends.
   const pointers = new Map();
-  let pinch = null;
+  let pinch = null;          // the two first pointers' distance and midpoint, CSS pixels
+  let multi = false;
+  const pair = () => {
+    const [a, b] = [...pointers.values()];
+    return { d: Math.hypot(a.x - b.x, a.y - b.y), x: (a.x + b.x) / 2, y: (a.y + b.y) / 2 };
+  };
   canvas.addEventListener('contextmenu', (e) => e.preventDefault());
   canvas.addEventListener('pointerdown', (e) => {
     view.focus();
     canvas.setPointerCapture(e.pointerId);
+    if (pointers.size === 0) multi = false;
     pointers.set(e.pointerId, { x: e.offsetX, y: e.offsetY, x0: e.offsetX, y0: e.offsetY, button: e.button, drag: false });
     canvas.classList.add('dragging');
-    if (pointers.size === 2) {
-      const [a, b] = [...pointers.values()];
-      pinch = { d: Math.hypot(a.x - b.x, a.y - b.y), x: (a.x + b.x) / 2, y: (a.y + b.y) / 2 };
+    if (pointers.size >= 2) {
+      multi = true;
+      pinch = pair();
     }
   });
   canvas.addEventListener('pointermove', (e) => {
     const p = pointers.get(e.pointerId);
     if (!p || !cam) return;
-    // A drag starts past a few pixels, so that a click picks without turning the view.
+    if (pointers.size >= 2) {
+      // Applied once per animation frame (`pinchStep`): fingers that move together arrive
+      // as one event each, and the midpoint must not wander between them.
+      p.x = e.offsetX;
+      p.y = e.offsetY;
+      return;
+    }
+    // A drag starts past a few pixels, so that a click or a tap picks without turning the view.
     if (!p.drag && Math.hypot(e.offsetX - p.x0, e.offsetY - p.y0) < 4) return;
     p.drag = true;
     const dx = e.offsetX - p.x, dy = e.offsetY - p.y;
     p.x = e.offsetX;
     p.y = e.offsetY;
-    if (pointers.size === 2 && pinch) {
-      const [a, b] = [...pointers.values()];
-      const d = Math.hypot(a.x - b.x, a.y - b.y), x = (a.x + b.x) / 2, y = (a.y + b.y) / 2;
-      if (pinch.d > 0 && d > 0) zoom(x, y, Math.log(d / pinch.d));
-      pan(x - pinch.x, y - pinch.y);
-      pinch = { d, x, y };
-      return;
-    }
     if (p.button === 2 || e.shiftKey || p.button === 1) pan(dx, dy);
     else if (e.ctrlKey || e.altKey) look(dx, dy);
     else orbit(dx, dy);
   });
+  // The pinch since the last animation frame: the distance's ratio zooms to the midpoint, the
+  // midpoint's movement pans.
+  function pinchStep() {
+    if (!pinch || !cam || pointers.size < 2) return;
+    const now = pair();
+    if (pinch.d > 0 && now.d > 0 && now.d !== pinch.d) zoom(now.x, now.y, Math.log(now.d / pinch.d));
+    if (now.x !== pinch.x || now.y !== pinch.y) pan(now.x - pinch.x, now.y - pinch.y);
+    pinch = now;
+  }
   const release = (e) => {
+    pinchStep();
     const p = pointers.get(e.pointerId);
-    if (p && !p.drag && p.button === 0 && pointers.size === 1 && e.type === 'pointerup' && cam) sendPick(p.x0, p.y0);
+    if (p && !p.drag && !multi && p.button === 0 && pointers.size === 1 && e.type === 'pointerup' && cam) sendPick(p.x0, p.y0);
     pointers.delete(e.pointerId);
     if (pointers.size < 2) pinch = null;
+    // The finger left after a pinch orbits on from where it is, without a jump.
+    if (pointers.size === 1) for (const q of pointers.values()) q.drag = true;
+    if (pointers.size >= 2) pinch = pair();
     if (pointers.size === 0) canvas.classList.remove('dragging');
   };
   canvas.addEventListener('pointerup', release);
@@ -765,6 +787,7 @@
     const dt = Math.min(0.1, (now - then) / 1000);
     then = now;
     fly(dt);
+    pinchStep();
     resize();
     if (dirty) sendCamera();
     if (sectionDirty) sendSection();

@@ -4,7 +4,8 @@
 //! flies through the model in the browser.
 //!
 //! - [`token`]: the per-start secret in the printed URL, checked on every request.
-//! - [`server`]: routes, the token guard, the Origin check on the socket, headers.
+//! - [`host`]: the names it answers to, and the one its URL prints.
+//! - [`server`]: routes, the token and Host guard, the Origin check on the socket, headers.
 //! - [`socket`]: one WebSocket, one view; the newest frame wins.
 //! - [`protocol`]: the messages ([`protocol::ClientMessage`], [`protocol::ServerMessage`],
 //!   the binary frame layout).
@@ -22,6 +23,7 @@
 pub mod assets;
 pub mod encode;
 pub mod error;
+pub mod host;
 pub mod protocol;
 pub mod server;
 pub mod socket;
@@ -70,6 +72,7 @@ impl ViewConfig {
 /// A started server.
 pub struct Running {
     url: String,
+    host: String,
     addr: SocketAddr,
     token: String,
     stop: watch::Sender<bool>,
@@ -83,6 +86,12 @@ impl Running {
     /// The page's URL, token included: what `oocfmt view` prints.
     pub fn url(&self) -> &str {
         &self.url
+    }
+
+    /// The host its URL names: the address listened on, or this machine's name when that is
+    /// every interface ([`host::url_host`]).
+    pub fn host(&self) -> &str {
+        &self.host
     }
 
     /// The address it listens on (the port chosen when 0 was asked).
@@ -139,12 +148,14 @@ pub async fn start(viewer: Arc<Viewer>, config: &ViewConfig) -> Result<Running, 
         .map_err(|source| ViewError::Bind { addr, source })?;
     let (stop, shutdown) = watch::channel(false);
     let mut on_stop = shutdown.clone();
-    let url = format!("http://{addr}/?token={}", token.as_str());
+    let host = host::url_host(addr.ip(), host::machine_name().as_deref());
+    let url = format!("http://{host}:{}/?token={}", addr.port(), token.as_str());
     let viewer_parts = viewer.scene().metadata().parts.clone();
     let app = Arc::new(App {
         hello: hello(&viewer, config),
         viewer,
         token: token.clone(),
+        hosts: host::Hosts::new(&host),
         quality: config.quality,
         shutdown,
         tree: tree::PartIndex::new(&viewer_parts),
@@ -159,6 +170,7 @@ pub async fn start(viewer: Arc<Viewer>, config: &ViewConfig) -> Result<Running, 
     });
     Ok(Running {
         url,
+        host,
         addr,
         token: token.as_str().to_string(),
         stop,
@@ -166,9 +178,13 @@ pub async fn start(viewer: Arc<Viewer>, config: &ViewConfig) -> Result<Running, 
     })
 }
 
-/// Serves `viewer` until Ctrl-C, on a runtime of its own; `ready` gets the URL once the server
-/// listens. The render thread stops when this returns.
-pub fn run(viewer: Viewer, config: &ViewConfig, ready: impl FnOnce(&str)) -> Result<(), ViewError> {
+/// Serves `viewer` until Ctrl-C, on a runtime of its own; `ready` gets the server once it
+/// listens (its URL to print). The render thread stops when this returns.
+pub fn run(
+    viewer: Viewer,
+    config: &ViewConfig,
+    ready: impl FnOnce(&Running),
+) -> Result<(), ViewError> {
     let viewer = Arc::new(viewer);
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -178,7 +194,7 @@ pub fn run(viewer: Viewer, config: &ViewConfig, ready: impl FnOnce(&str)) -> Res
         .map_err(ViewError::Runtime)?;
     let result = runtime.block_on(async {
         let running = start(Arc::clone(&viewer), config).await?;
-        ready(running.url());
+        ready(&running);
         let signal = tokio::signal::ctrl_c().await.map_err(ViewError::Signal);
         let stopped = running.stop().await;
         signal.and(stopped)

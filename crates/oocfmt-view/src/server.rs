@@ -2,8 +2,9 @@
 //! WebSocket upgrade, and the headers every answer carries.
 //!
 //! Order of refusals: no token → 401, a wrong one → 403 (before anything else, so a stranger
-//! learns nothing, not even which paths exist); then a path that is not the page, one of its
-//! assets or the socket → 404; a WebSocket whose Origin is not this server's own → 403.
+//! learns nothing, not even which paths exist); a Host that is not one of this server's names
+//! ([`crate::host`]) → 403; then a path that is not the page, one of its assets or the socket
+//! → 404; a WebSocket whose Origin is not this server's own → 403.
 
 use std::sync::Arc;
 
@@ -18,6 +19,7 @@ use axum::routing::get;
 use axum::Router;
 
 use crate::assets;
+use crate::host::Hosts;
 use crate::socket::{self, App};
 use crate::token;
 
@@ -36,9 +38,9 @@ pub fn router(app: Arc<App>) -> Router {
         .with_state(app)
 }
 
-/// Refuses a request without the token (401) or with a wrong one (403), and puts the headers
-/// every answer carries on the others: not cached, not sniffed, no referrer (the URL holds the
-/// token), never framed.
+/// Refuses a request without the token (401), with a wrong one (403) or for a host that is
+/// not this server's (403), and puts the headers every answer carries on the others: not
+/// cached, not sniffed, no referrer (the URL holds the token), never framed.
 async fn guard(State(app): State<Arc<App>>, req: Request, next: Next) -> Response {
     let mut resp = match token::in_query(req.uri().query()) {
         None => text(
@@ -46,6 +48,10 @@ async fn guard(State(app): State<Arc<App>>, req: Request, next: Next) -> Respons
             "this server needs its token: open the URL `oocfmt view` printed\n",
         ),
         Some(t) if !app.token.matches(t) => text(StatusCode::FORBIDDEN, "wrong token\n"),
+        Some(_) if !host_of(req.headers()).is_some_and(|h| app.hosts.allows(h)) => text(
+            StatusCode::FORBIDDEN,
+            "this server does not answer to that host name: open the URL `oocfmt view` printed\n",
+        ),
         Some(_) => next.run(req).await,
     };
     let h = resp.headers_mut();
@@ -94,19 +100,25 @@ async fn asset(uri: Uri) -> Response {
     }
 }
 
-/// Whether `headers` carry an Origin that is this server as the browser reached it
-/// (`http://` and the Host header): a page from anywhere else cannot open the socket, even with
-/// the token.
-fn same_origin(headers: &HeaderMap) -> bool {
-    let get = |name| {
-        headers
-            .get(name)
-            .and_then(|v: &HeaderValue| v.to_str().ok())
-    };
-    match (get(header::HOST), get(header::ORIGIN)) {
-        (Some(host), Some(origin)) => origin
-            .strip_prefix("http://")
-            .is_some_and(|o| o.eq_ignore_ascii_case(host)),
+/// The Host header, when it is text.
+fn host_of(headers: &HeaderMap) -> Option<&str> {
+    headers.get(header::HOST).and_then(|v| v.to_str().ok())
+}
+
+/// Whether `headers` carry a Host this server answers to and an Origin that is this server as
+/// the browser reached it (`http://` and that Host): a page from anywhere else cannot open the
+/// socket, even with the token.
+fn same_origin(headers: &HeaderMap, hosts: &Hosts) -> bool {
+    let origin = headers
+        .get(header::ORIGIN)
+        .and_then(|v: &HeaderValue| v.to_str().ok());
+    match (host_of(headers), origin) {
+        (Some(host), Some(origin)) => {
+            hosts.allows(host)
+                && origin
+                    .strip_prefix("http://")
+                    .is_some_and(|o| o.eq_ignore_ascii_case(host))
+        }
         _ => false,
     }
 }
@@ -117,7 +129,7 @@ async fn upgrade(
     headers: HeaderMap,
     ws: WebSocketUpgrade,
 ) -> Response {
-    if !same_origin(&headers) {
+    if !same_origin(&headers, &app.hosts) {
         return text(
             StatusCode::FORBIDDEN,
             "WebSocket refused: its Origin is not this server\n",
@@ -144,11 +156,12 @@ mod tests {
 
     #[test]
     fn only_this_servers_origin_opens_the_socket() {
+        let hosts = Hosts::new("127.0.0.1");
         let host = (header::HOST, "127.0.0.1:8080");
-        assert!(same_origin(&headers(&[
-            host.clone(),
-            (header::ORIGIN, "http://127.0.0.1:8080")
-        ])));
+        assert!(same_origin(
+            &headers(&[host.clone(), (header::ORIGIN, "http://127.0.0.1:8080")]),
+            &hosts
+        ));
         for origin in [
             "http://127.0.0.1:8081",
             "http://evil.example",
@@ -157,8 +170,15 @@ mod tests {
             "http://127.0.0.1:8080.evil.example",
         ] {
             let h = headers(&[host.clone(), (header::ORIGIN, origin)]);
-            assert!(!same_origin(&h), "{origin}");
+            assert!(!same_origin(&h, &hosts), "{origin}");
         }
-        assert!(!same_origin(&headers(&[host])), "no Origin");
+        assert!(!same_origin(&headers(&[host]), &hosts), "no Origin");
+        // A page whose own name points here (DNS rebinding): Origin and Host agree, the name
+        // is not this server's.
+        let rebound = headers(&[
+            (header::HOST, "evil.example:8080"),
+            (header::ORIGIN, "http://evil.example:8080"),
+        ]);
+        assert!(!same_origin(&rebound, &hosts));
     }
 }

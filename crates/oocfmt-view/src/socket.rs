@@ -16,6 +16,7 @@ use oocfmt_trace::parts::PartFilter;
 use oocfmt_trace::Section;
 
 use crate::encode::{self, MovingQuality};
+use crate::host::Hosts;
 use crate::protocol::{frame_message, ClientMessage, FrameHeader, ServerMessage, MAX_MESSAGE};
 use crate::token::Token;
 use crate::tree::PartIndex;
@@ -26,6 +27,8 @@ pub struct App {
     pub viewer: Arc<Viewer>,
     /// The server's token.
     pub token: Token,
+    /// The names requests may carry as their Host.
+    pub hosts: Hosts,
     /// The hello message, JSON.
     pub hello: String,
     /// The quality a new view starts with.

@@ -1,12 +1,13 @@
 //! The viewer's server for real, on a free port of 127.0.0.1: the token on every request, the
-//! Origin on the socket, only the page's own assets, cameras in and frames out over a
+//! Origin on the socket, on every interface a URL naming this machine and only its own names
+//! answered, only the page's own assets, cameras in and frames out over a
 //! WebSocket with the last frame of a still view equal to the blocking cache's full-detail
 //! render bit for bit, picks, refused messages answered and changing nothing, several tabs, and a
 //! clean stop.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::io::{Read, Write};
-use std::net::SocketAddr;
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
@@ -52,6 +53,10 @@ struct Fixture {
 }
 
 async fn serve() -> Fixture {
+    serve_on(IpAddr::V4(Ipv4Addr::LOCALHOST)).await
+}
+
+async fn serve_on(bind: IpAddr) -> Fixture {
     let dir = tempfile::tempdir().unwrap();
     let path = mandelbulb(dir.path());
     let (scene, cache) = Cache::open(
@@ -69,7 +74,10 @@ async fn serve() -> Fixture {
         ..LiveOptions::DEFAULT
     };
     let viewer = Viewer::start(Arc::clone(&scene), cache, RenderOptions::DEFAULT, opts).unwrap();
-    let config = ViewConfig::local("mb.oocf", Quality { poe: 0.0, spp: 1 });
+    let config = ViewConfig {
+        bind,
+        ..ViewConfig::local("mb.oocf", Quality { poe: 0.0, spp: 1 })
+    };
     let running = start(Arc::new(viewer), &config).await.unwrap();
     Fixture {
         _dir: dir,
@@ -81,11 +89,16 @@ async fn serve() -> Fixture {
 /// A raw HTTP/1.1 GET of `target`, exactly as written (no client normalises the path):
 /// the status and the whole response.
 fn get(addr: SocketAddr, target: &str) -> (u16, String) {
+    get_as(addr, &addr.to_string(), target)
+}
+
+/// [`get`] with `host` as the Host header.
+fn get_as(addr: SocketAddr, host: &str, target: &str) -> (u16, String) {
     let mut s = std::net::TcpStream::connect(addr).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
     write!(
         s,
-        "GET {target} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+        "GET {target} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
     )
     .unwrap();
     let mut out = Vec::new();
@@ -110,6 +123,22 @@ async fn socket(addr: SocketAddr, query: &str, origin: Option<&str>) -> Result<W
     tokio_tungstenite::connect_async(req)
         .await
         .map(|(ws, _)| ws)
+}
+
+/// A socket to `addr` as a browser that opened `host` (the Host header) from a page of
+/// `origin`: the HTTP status of its refusal, or None when it opened.
+async fn socket_as(addr: SocketAddr, host: &str, query: &str, origin: &str) -> Option<u16> {
+    let mut req = format!("ws://{host}/ws{query}")
+        .into_client_request()
+        .unwrap();
+    req.headers_mut()
+        .insert("Origin", HeaderValue::from_str(origin).unwrap());
+    let tcp = TcpStream::connect(addr).await.unwrap();
+    match tokio_tungstenite::client_async(req, tcp).await {
+        Ok(_) => None,
+        Err(WsError::Http(resp)) => Some(resp.status().as_u16()),
+        Err(e) => panic!("refused without an HTTP status: {e}"),
+    }
 }
 
 fn refused_with(r: Result<Ws, WsError>) -> u16 {
@@ -275,6 +304,57 @@ async fn the_socket_needs_the_token_and_this_servers_origin() {
         "{hello}"
     );
     assert_eq!(hello["quality"]["poe"], 0.0);
+    f.running.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn on_every_interface_the_url_names_this_machine_and_only_its_names_are_answered() {
+    let f = serve_on(IpAddr::V4(Ipv4Addr::UNSPECIFIED)).await;
+    let (addr, token) = (f.running.addr(), f.running.token().to_string());
+    assert!(addr.ip().is_unspecified());
+    let host = f.running.host().to_string();
+    assert_eq!(
+        f.running.url(),
+        format!("http://{host}:{}/?token={token}", addr.port())
+    );
+    assert!(!f.running.url().contains("0.0.0.0"), "{}", f.running.url());
+    assert!(
+        host.parse::<IpAddr>()
+            .map_or(true, |ip| !ip.is_unspecified()),
+        "{host}"
+    );
+    if let Some(name) = oocfmt_view::host::machine_name() {
+        assert_eq!(host, name, "the URL names this machine");
+    }
+    // Reached over loopback, as a browser that opened the printed URL, or localhost.
+    let local = SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), addr.port());
+    let printed = format!("{host}:{}", addr.port());
+    let page = format!("/?token={token}");
+    for h in [
+        printed.as_str(),
+        &format!("localhost:{}", addr.port()),
+        &local.to_string(),
+    ] {
+        assert_eq!(get_as(local, h, &page).0, 200, "{h}");
+    }
+    // A page whose own name was pointed at this machine is refused, token or not.
+    for h in ["evil.example", "evil.example:80", "vm.evil.example"] {
+        assert_eq!(get_as(local, h, &page).0, 403, "{h}");
+    }
+    let query = format!("?token={token}");
+    let origin = format!("http://{printed}");
+    assert_eq!(socket_as(local, &printed, &query, &origin).await, None);
+    for (h, o) in [
+        (printed.as_str(), "http://evil.example"),
+        (printed.as_str(), "null"),
+        ("evil.example:8800", "http://evil.example:8800"),
+    ] {
+        assert_eq!(
+            socket_as(local, h, &query, o).await,
+            Some(403),
+            "Host {h}, Origin {o}"
+        );
+    }
     f.running.stop().await.unwrap();
 }
 

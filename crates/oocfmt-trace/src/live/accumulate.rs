@@ -1,49 +1,25 @@
 //! Accumulating a still view into an antialiased image, one pass at a time, so that a new
-//! camera never waits behind a many-sample frame: pass k renders the whole image once with the
-//! camera turned by a sub-pixel offset ([`jitter`], [`jittered`]), and the passes' colours are
-//! averaged in linear RGB.
+//! camera never waits behind a many-sample frame: pass k of `spp` renders the whole image once
+//! with each pixel's ray through the point `render --spp` uses for its sample k
+//! ([`pass_frame`]), and the passes' colours are averaged in linear RGB.
 //!
-//! Turning the camera moves every pixel's ray by the offset at the image centre exactly and
-//! by slightly less towards the edges (at a 45° field of view, a 4:3 image's corners by about a
-//! fifth less): an antialiasing filter a little narrower there, not a shift of the picture.
+//! The pass moves the point on the image plane, not the camera: every ray moves by its pixel's
+//! offset, in the corners as at the centre (turning the camera by the centre's offset moved a
+//! 45° view's corner rays about 30 % farther, and across too: a wider filter there). With the same points the last image is `render --spp` of the same
+//! camera but for rounding: each pass is rounded to 8-bit sRGB before it is averaged.
 
 use std::sync::OnceLock;
 
-use crate::camera::{length, Camera};
+use crate::camera::{Aim, Camera, Frame};
 use crate::error::TraceError;
 use crate::render::Image;
 use crate::shade::encode_srgb;
 
-/// The sub-pixel offset (x right, y down, in pixels, each in [-0.5, 0.5)) of accumulation pass
-/// `k`: pass 0 is the pixel centres, the others follow the R2 sequence (Roberts 2018), whose
-/// first n points cover the pixel evenly for every n, so the average is good at any pass.
-pub fn jitter(k: u32) -> [f64; 2] {
-    // The plastic number's powers: 1/g and 1/g² are the R2 sequence's steps.
-    const G: f64 = 1.324_717_957_244_746;
-    let step = [1.0 / G, 1.0 / (G * G)];
-    let k = f64::from(k);
-    step.map(|a| {
-        let v = 0.5 + a * k;
-        v - v.floor() - 0.5
-    })
-}
-
-/// `camera` turned about its eye so that the centre ray passes `offset` pixels (x right, y
-/// down) from the image centre; the distance to the look-at point and the up vector are kept.
-pub fn jittered(camera: &Camera, offset: [f64; 2]) -> Result<Camera, TraceError> {
-    let f = camera.frame()?;
-    if offset == [0.0, 0.0] {
-        return Ok(*camera);
-    }
-    let (fwd, right, up) = f.basis();
-    let p = f.pixel_angle();
-    let d = [0, 1, 2].map(|k| fwd[k] + offset[0] * p * right[k] - offset[1] * p * up[k]);
-    let to = [0, 1, 2].map(|k| camera.look_at[k] - camera.eye[k]);
-    let scale = length(to) / length(d);
-    Ok(Camera {
-        look_at: [0, 1, 2].map(|k| camera.eye[k] + d[k] * scale),
-        ..*camera
-    })
+/// The frame of pass `k` of `spp` through `camera`: its rays go through the points of
+/// sample `k` of `render --spp spp` ([`crate::sampling::pixel_offset`]), so pass 0 of 1 is the
+/// pixel centres, an ordinary frame of `render`.
+pub fn pass_frame(camera: &Camera, k: u32, spp: u32) -> Result<Frame, TraceError> {
+    Ok(camera.frame()?.aimed(Aim::Sample { k, n: spp }))
 }
 
 /// The linear value of each sRGB level.
@@ -70,13 +46,13 @@ pub struct Accumulator {
     /// Linear RGB summed over the passes, 3 a pixel.
     sum: Vec<f32>,
     samples: u32,
-    /// The first pass's depths and model pixels (the centre rays').
+    /// The first pass's depths; the pixels any pass found the model in.
     depth: Vec<f32>,
     model: Vec<bool>,
 }
 
 impl Accumulator {
-    /// An average of one pass: `first`, the pixel centres.
+    /// An average of one pass: `first` (sample 0).
     pub fn new(first: &Image) -> Accumulator {
         Accumulator {
             width: first.width,
@@ -160,43 +136,52 @@ mod tests {
         assert_eq!(a.samples(), 2);
     }
 
-    #[test]
-    fn jitter_starts_at_the_centre_and_stays_inside_the_pixel() {
-        assert_eq!(jitter(0), [0.0, 0.0]);
-        let mut quadrants = [0u32; 4];
-        for k in 1..65 {
-            let [x, y] = jitter(k);
-            assert!((-0.5..0.5).contains(&x) && (-0.5..0.5).contains(&y));
-            quadrants[usize::from(x >= 0.0) + 2 * usize::from(y >= 0.0)] += 1;
-        }
-        // 64 points spread over the pixel: each quadrant gets about a quarter.
-        assert!(
-            quadrants.iter().all(|&q| (12..=20).contains(&q)),
-            "{quadrants:?}"
-        );
+    /// Where `dir` crosses the image plane at distance 1 of `f`, in pixels right and down of
+    /// the image centre.
+    fn on_plane(f: &Frame, dir: [f32; 3]) -> [f64; 2] {
+        let (fwd, right, up) = f.basis();
+        let d = dir.map(f64::from);
+        let p = f.pixel_angle() * crate::camera::dot(d, fwd);
+        [
+            crate::camera::dot(d, right) / p,
+            -crate::camera::dot(d, up) / p,
+        ]
     }
 
     #[test]
-    fn a_jittered_camera_moves_the_centre_ray_by_the_offset() -> Result<(), TraceError> {
+    fn a_pass_moves_a_corner_ray_by_its_whole_offset_on_the_image_plane() -> Result<(), TraceError>
+    {
+        // A wide view, where turning the camera by half a pixel at the centre would move a
+        // corner ray by 1.4 pixels across and 0.65 down.
         let cam = Camera {
             eye: [0.0, 0.0, 5.0],
             look_at: [0.0; 3],
             up: [0.0, 1.0, 0.0],
             fov_y: 90.0,
-            width: 100,
-            height: 100,
+            width: 160,
+            height: 120,
         };
-        let j = jittered(&cam, [0.5, 0.25])?;
-        // The jittered centre ray is the original's ray through (50.5, 50.25).
-        let want = cam.frame()?.ray_at(50.5, 50.25).dir;
-        let got = j.frame()?.ray_at(50.0, 50.0).dir;
-        for k in 0..3 {
-            assert!((want[k] - got[k]).abs() < 1e-6, "{want:?} {got:?}");
+        let centre = cam.frame()?;
+        let spp = 8;
+        for k in 0..spp {
+            let pass = pass_frame(&cam, k, spp)?;
+            for (x, y) in [(0, 0), (159, 119), (0, 119), (80, 60)] {
+                let [ox, oy] = crate::sampling::pixel_offset(x, y, k, spp);
+                let from = on_plane(&centre, centre.ray(x, y).dir);
+                let to = on_plane(&centre, pass.ray(x, y).dir);
+                let moved = [to[0] - from[0], to[1] - from[1]];
+                let want = [ox - 0.5, oy - 0.5];
+                assert!(
+                    (moved[0] - want[0]).abs() < 1e-4 && (moved[1] - want[1]).abs() < 1e-4,
+                    "pixel ({x}, {y}) pass {k}: moved {moved:?}, want {want:?}"
+                );
+            }
         }
-        assert_eq!(
-            jittered(&cam, [0.0, 0.0])?.frame()?.ray(3, 7).dir,
-            cam.frame()?.ray(3, 7).dir
-        );
+        // One sample: the pixel centres, bit for bit.
+        let one = pass_frame(&cam, 0, 1)?;
+        for (x, y) in [(0, 0), (159, 119), (80, 60)] {
+            assert_eq!(one.ray(x, y).dir, centre.ray(x, y).dir);
+        }
         Ok(())
     }
 }

@@ -5,7 +5,7 @@
 //! - [`schedule`]: the refine schedule, pure bookkeeping: while the camera moves, the
 //!   resolution and PoE that hold the target frame time; once still, full resolution, then the
 //!   PoE asked for until every block has arrived, then accumulated samples.
-//! - [`accumulate`]: jittered passes averaged in linear RGB.
+//! - [`accumulate`]: passes through `render --spp`'s sample points, averaged in linear RGB.
 //! - [`view`]: one view ([`LiveView`]): its camera, schedule and accumulated image, rendered
 //!   through a session cache ([`crate::session::Cache`]); frames come with [`LiveFigures`].
 //! - [`viewer`]: the render thread serving many views of one scene and cache ([`Viewer`]);

@@ -8,8 +8,8 @@
 //! does the PoE rise, doubling up to [`LiveOptions::max_moving_poe`]. Once the camera has stayed
 //! put for [`LiveOptions::still_ms`] the view refines: full resolution at the moving PoE
 //! ([`Stage::Sharpen`]), then the PoE asked for until a frame finds every block it wants
-//! ([`Stage::Settle`]), then jittered passes averaged into `spp` samples
-//! ([`Stage::Accumulate`]). A new camera restarts the schedule at once; a frame planned before it
+//! ([`Stage::Settle`], sample 0 of `spp`), then passes through the other samples averaged
+//! into `spp` ([`Stage::Accumulate`]). A new camera restarts the schedule at once; a frame planned before it
 //! is stale.
 
 use std::time::{Duration, Instant};
@@ -67,7 +67,7 @@ pub enum Stage {
     /// Still: full resolution at the asked PoE, rendered again while blocks arrive until a
     /// frame finds every block it wants.
     Settle,
-    /// Still and settled: a jittered pass added to the average.
+    /// Still and settled: a pass through another sample of each pixel added to the average.
     Accumulate,
     /// Nothing left to do until the camera or the quality changes.
     Done,
@@ -95,8 +95,9 @@ pub struct Plan {
     pub scale: f64,
     /// Pixels of error.
     pub poe: f32,
-    /// The accumulation pass: 0 is the pixel centres, k > 0 a jittered pass
-    /// ([`crate::live::accumulate::jitter`]).
+    /// The sample of the still image's `spp` the frame renders: 0 while settling, k > 0 the
+    /// accumulation pass k ([`crate::live::accumulate::pass_frame`]; sample 0 of 1 is the pixel
+    /// centres). Moving and sharpening frames go through the centres whatever it says.
     pub sample: u32,
     /// The camera and quality it was planned for; a later change makes it stale.
     pub generation: u64,
@@ -135,7 +136,8 @@ pub struct Verdict {
     pub keep: bool,
 }
 
-/// Jittered passes that wanted blocks are rendered again at most this many times, then kept.
+/// Accumulation passes that wanted blocks are rendered again at most this many times, then
+/// kept.
 const MAX_PASS_TRIES: u32 = 3;
 
 /// The scale of the first moving frame, before any cost is known.
@@ -547,7 +549,7 @@ mod tests {
             }
         );
         assert!(s.complete());
-        // Two jittered passes make three samples, the last one last.
+        // Two passes make three samples, the last one last.
         let mut verdicts = Vec::new();
         for (k, t) in [(1, 610), (2, 620)] {
             let Next::Render(p) = s.next(at(t0, t)) else {

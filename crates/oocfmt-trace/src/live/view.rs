@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use super::accumulate::{jitter, jittered, Accumulator};
+use super::accumulate::{pass_frame, Accumulator};
 use super::schedule::{LiveOptions, Next, Outcome, Plan, Quality, Schedule, Stage};
 use crate::parts::PartFilter;
 use crate::pick::{pick, Pick};
@@ -320,9 +320,13 @@ impl LiveView {
         let full = self
             .camera
             .ok_or_else(|| TraceError::Camera("the view has no camera yet".into()))?;
-        let camera = match plan.stage {
-            Stage::Accumulate => jittered(&full, jitter(plan.sample))?,
-            _ => scaled(&full, plan.scale),
+        // The still frames go through the points of `render --spp`'s samples; the others
+        // through the pixel centres.
+        let aimed = match plan.stage {
+            Stage::Settle | Stage::Accumulate => {
+                pass_frame(&full, plan.sample, self.schedule.asked().spp)?
+            }
+            _ => scaled(&full, plan.scale).frame()?,
         };
         let opts = RenderOptions {
             poe: plan.poe,
@@ -330,7 +334,7 @@ impl LiveView {
             ..self.base
         };
         self.put_on(scene);
-        let frame = session::frame(scene, cache.get(), &camera, &opts)?;
+        let frame = session::frame_aimed(scene, cache.get(), &aimed, &opts)?;
         if let Some(ac) = cache.as_async() {
             ac.idle();
         }
@@ -339,7 +343,7 @@ impl LiveView {
         let c = &stats.cache;
         let outcome = Outcome {
             ms: stats.ms + frame.step_ms,
-            pixels: u64::from(camera.width) * u64::from(camera.height),
+            pixels: u64::from(aimed.width()) * u64::from(aimed.height()),
             wanted: c.blocks_wanted_last_frame,
         };
         let verdict = self.schedule.finished(plan, outcome, now);
@@ -349,8 +353,8 @@ impl LiveView {
             stage: plan.stage.name(),
             last: verdict.last,
             stale: verdict.stale,
-            width: camera.width,
-            height: camera.height,
+            width: aimed.width(),
+            height: aimed.height(),
             poe: plan.poe,
             samples: 1,
             spp: self.schedule.asked().spp,
