@@ -25,7 +25,8 @@ use oocfmt_trace::{walk, Camera, RenderOptions, Scene, Section};
 
 use crate::accuracy::{self, Accuracy};
 use crate::args::{
-    self, budget_bytes, use_threads, CacheArg, EvictionArg, FetchOrderArg, LodArg, Switch, View,
+    self, budget_bytes, use_threads, CacheArg, EvictionArg, FetchOrderArg, IoArg, LodArg, Switch,
+    View,
 };
 use crate::error::{to_json, CliError, CliResult};
 use crate::out::outln;
@@ -54,6 +55,13 @@ pub struct Args {
     /// needs a container converted with `--codec none`)
     #[arg(long, value_enum, default_value = "async")]
     pub cache: CacheArg,
+    /// How the async and blocking caches read blocks: `buffered` (through the operating
+    /// system's page cache, which then holds the file's bytes beside the decoded blocks) or
+    /// `direct` (past it: O_DIRECT, or where the file system refuses that, buffered reads each
+    /// dropped from the page cache after it); the figures say which was in effect. Not with
+    /// --cache mmap, whose map is the page cache
+    #[arg(long, value_enum, default_value = "buffered")]
+    pub io: IoArg,
     /// Fetcher threads of the async cache (default: half the cores, at least one: reading,
     /// decompressing and decoding blocks takes CPU time from the render threads)
     #[arg(long, default_value_t = args::default_fetchers(), value_parser = clap::value_parser!(u64).range(1..=64))]
@@ -227,6 +235,9 @@ pub fn run(a: &Args) -> CliResult {
         ));
     }
     let (scene, cache) = open_cache(a)?;
+    if let (Some(note), false) = (args::io_note(a.io, &scene), a.json) {
+        outln!("{note}")?;
+    }
     choose_parts(a, &scene)?;
     scene.set_section(a.section);
     let opts = RenderOptions {
@@ -339,11 +350,7 @@ fn pick_line((x, y): (u32, u32), poe: f32, p: Option<&Pick>) -> String {
 fn open_cache(a: &Args) -> Result<(Arc<Scene>, Cache), CliError> {
     let kind = CacheKind::from(a.cache);
     let lod = a.lod.map(Into::into);
-    let scene = if kind == CacheKind::Mmap {
-        None
-    } else {
-        Some(Arc::new(session::open_scene(&a.model, lod)?))
-    };
+    let scene = args::scene_for(&a.model, kind, lod, a.io)?;
     let opts = AsyncOptions {
         fetchers: usize::try_from(a.fetchers).unwrap_or(1),
         read_ahead: a.read_ahead,
@@ -453,12 +460,14 @@ fn print_still(
     }
     let c = &stats.cache;
     outln!(
-        "blocks: {} loaded, {} evicted, {:.1} MiB resident (peak {:.1} MiB of {} MiB)",
+        "blocks: {} loaded, {} evicted, {:.1} MiB resident (peak {:.1} MiB of {} MiB); {} \
+         render-thread waits on I/O in this frame",
         c.blocks_loaded,
         c.blocks_evicted,
         c.bytes_resident as f64 / 1048576.0,
         c.peak_bytes_resident as f64 / 1048576.0,
-        a.cache_mb
+        a.cache_mb,
+        stats.waits
     )
 }
 
@@ -516,7 +525,7 @@ fn print_frame(r: &FrameRecord, prefetching: bool) -> Result<(), CliError> {
         String::new()
     };
     outln!("frame {:4}: {:8.1} ms (+{:.1} ms step) {:7.2} Mrays/s | tri {} voxel {} proxy {} miss {} | blocks \
-         +{} requested +{} loaded{prefetched} +{} evicted {} pending {} missed | {:.1} MiB | hit {:.1}% | {}",
+         +{} requested +{} loaded{prefetched} +{} evicted {} pending {} missed | {:.1} MiB | hit {:.1}% | waits {} | {}",
         r.frame,
         f.ms,
         f.step_ms,
@@ -532,6 +541,7 @@ fn print_frame(r: &FrameRecord, prefetching: bool) -> Result<(), CliError> {
         f.blocks_missed,
         f.working_set_mb,
         100.0 * f.hit_rate,
+        f.waits,
         r.file
     )
 }

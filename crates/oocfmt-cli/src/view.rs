@@ -5,15 +5,14 @@
 
 use std::net::IpAddr;
 use std::path::PathBuf;
-use std::sync::Arc;
 
 use oocfmt_trace::cache::asynchronous::AsyncOptions;
 use oocfmt_trace::live::{LiveOptions, Quality, Viewer};
-use oocfmt_trace::session::{self, Cache, CacheKind};
+use oocfmt_trace::session::{Cache, CacheKind};
 use oocfmt_trace::RenderOptions;
 use oocfmt_view::{ViewConfig, ViewError};
 
-use crate::args::{self, budget_bytes, use_threads, CacheArg, LodArg};
+use crate::args::{self, budget_bytes, use_threads, CacheArg, IoArg, LodArg};
 use crate::error::{CliError, CliResult};
 use crate::out::outln;
 
@@ -24,8 +23,9 @@ pub struct Args {
     /// Port to listen on; 0 takes any free one (the URL printed says which)
     #[arg(long, default_value_t = 0)]
     pub port: u16,
-    /// Address to listen on. The default serves this machine only; another address (0.0.0.0:
-    /// every interface) lets anyone who can reach it and has the URL's token drive the viewer
+    /// Address to listen on. The default serves this machine only; another address (0.0.0.0 or
+    /// `::`: every interface, and the URL names this machine) lets anyone who can reach it and
+    /// has the URL's token drive the viewer
     #[arg(long, default_value = "127.0.0.1")]
     pub bind: IpAddr,
     /// Also open the page in the system's browser (xdg-open, or open on macOS)
@@ -39,8 +39,8 @@ pub struct Args {
     /// can change it
     #[arg(long, default_value_t = 1.0, value_parser = parse_poe)]
     pub poe: f32,
-    /// Samples per pixel the still image accumulates, one jittered pass at a time; the page
-    /// can change it
+    /// Samples per pixel the still image accumulates, one pass at a time through the points
+    /// `render --spp` takes; the page can change it
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=i64::from(oocfmt_trace::render::MAX_SAMPLES)))]
     pub spp: u32,
     /// Memory for decoded blocks, in MiB
@@ -51,6 +51,10 @@ pub struct Args {
     /// frames stall) or `mmap` (needs a container converted with `--codec none`)
     #[arg(long, value_enum, default_value = "async")]
     pub cache: CacheArg,
+    /// How the async and blocking caches read blocks (as for `render`): `buffered` or `direct`
+    /// (past the page cache); not with mmap
+    #[arg(long, value_enum, default_value = "buffered")]
+    pub io: IoArg,
     /// LOD representation to stop on (default: voxel when the file has voxels, else rlod)
     #[arg(long, value_enum)]
     pub lod: Option<LodArg>,
@@ -122,16 +126,15 @@ pub fn run(a: &Args) -> CliResult {
     use_threads(a.threads)?;
     let kind = CacheKind::from(a.cache);
     let lod = a.lod.map(Into::into);
-    let scene = if kind == CacheKind::Mmap {
-        None
-    } else {
-        Some(Arc::new(session::open_scene(&a.model, lod)?))
-    };
+    let scene = args::scene_for(&a.model, kind, lod, a.io)?;
     let opts = AsyncOptions {
         fetchers: usize::try_from(a.fetchers).unwrap_or(1),
         ..AsyncOptions::default()
     };
     let (scene, cache) = Cache::open(&a.model, scene, kind, budget_bytes(a.cache_mb), &opts, lod)?;
+    if let Some(note) = args::io_note(a.io, &scene) {
+        eprintln!("oocfmt: {note}");
+    }
     let live = LiveOptions {
         target_ms: a.target_ms,
         still_ms: (3.0 * a.target_ms).max(LiveOptions::DEFAULT.still_ms),
@@ -159,11 +162,19 @@ pub fn run(a: &Args) -> CliResult {
         );
     }
     let mut printed = Ok(());
-    oocfmt_view::run(viewer, &config, |url| {
-        printed = outln!("{url}");
+    oocfmt_view::run(viewer, &config, |running| {
+        printed = outln!("{}", running.url());
+        if running.addr().ip().is_unspecified() {
+            eprintln!(
+                "oocfmt: listening on all interfaces ({}); the URL names this machine as `{}`: \
+                 where that name does not reach it, put one of its addresses in its place",
+                running.addr(),
+                running.host()
+            );
+        }
         eprintln!("oocfmt: viewing {}; Ctrl-C stops", a.model.display());
         if a.open {
-            open_browser(url);
+            open_browser(running.url());
         }
     })
     .map_err(view_error)?;

@@ -216,6 +216,10 @@ pub struct FrameStats {
     pub nodes_visited: u64,
     /// `nodes_visited` over `rays`.
     pub nodes_per_ray: f64,
+    /// Times a render thread waited on I/O during the frame: block reads made on render
+    /// threads ([`CacheStats::render_waits`]), every miss with the blocking and mmap caches,
+    /// none with the asynchronous cache.
+    pub waits: u64,
     /// The cache's counters after the frame (cumulative over the cache's life).
     pub cache: CacheStats,
 }
@@ -270,18 +274,31 @@ pub fn render(
     opts: &RenderOptions,
 ) -> Result<(Image, FrameStats), TraceError> {
     opts.check()?;
-    let frame = camera.frame()?;
+    render_frame(scene, cache, &camera.frame()?, opts)
+}
+
+/// [`render`] through a camera's frame made already: one aimed at a sample of every pixel
+/// ([`Frame::aimed`]) renders a pass of an accumulated image (`crate::live`).
+pub fn render_frame(
+    scene: &Scene,
+    cache: &dyn BlockCache,
+    frame: &Frame,
+    opts: &RenderOptions,
+) -> Result<(Image, FrameStats), TraceError> {
+    opts.check()?;
     let parts = scene.parts();
-    let mut job = FrameJob::new(scene, cache, &frame, opts, &parts);
+    let mut job = FrameJob::new(scene, cache, frame, opts, &parts);
     job.section = scene.stored_section();
     let start = Instant::now();
+    let waits = cache.render_waits();
     cache.begin_frame();
     let done: Vec<TileOut> = (0..job.tiles())
         .into_par_iter()
         .map_init(|| Memo::pooled(scene), |memo, tile| job.tile(tile, memo))
         .collect();
     let seconds = start.elapsed().as_secs_f64();
-    let (image, totals) = job.assemble(done);
+    let (image, mut totals) = job.assemble(done);
+    totals.waits = cache.render_waits().saturating_sub(waits);
     Ok((image, job.stats(&totals, seconds)))
 }
 
@@ -309,6 +326,8 @@ struct FrameTotals {
     primary: Endings,
     secondary: Secondary,
     nodes_visited: u64,
+    /// Block reads the frame's render threads waited for ([`FrameStats::waits`]).
+    waits: u64,
 }
 
 impl<'a> FrameJob<'a> {
@@ -575,6 +594,7 @@ impl<'a> FrameJob<'a> {
             primary: totals.primary,
             nodes_visited: totals.nodes_visited,
             nodes_per_ray: totals.nodes_visited as f64 / rays.max(1) as f64,
+            waits: totals.waits,
             cache: self.cache.stats(),
         }
     }

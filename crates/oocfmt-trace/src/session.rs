@@ -173,16 +173,34 @@ pub fn frame(
     camera: &Camera,
     opts: &RenderOptions,
 ) -> Result<Frame, TraceError> {
-    let (image, mut stats) = render(scene, cache, camera, opts)?;
+    Ok(stepped(cache, render(scene, cache, camera, opts)?))
+}
+
+/// [`frame`] through a camera's frame made already ([`crate::render::render_frame`]): a
+/// live view's accumulation pass, aimed at a sample of every pixel.
+pub fn frame_aimed(
+    scene: &Scene,
+    cache: &dyn BlockCache,
+    frame: &crate::camera::Frame,
+    opts: &RenderOptions,
+) -> Result<Frame, TraceError> {
+    Ok(stepped(
+        cache,
+        crate::render::render_frame(scene, cache, frame, opts)?,
+    ))
+}
+
+/// A rendered frame with the cache's step after it.
+fn stepped(cache: &dyn BlockCache, (image, mut stats): (Image, FrameStats)) -> Frame {
     let step = Instant::now();
     cache.end_frame();
     let step_ms = step.elapsed().as_secs_f64() * 1e3;
     stats.cache = cache.stats();
-    Ok(Frame {
+    Frame {
         image,
         stats,
         step_ms,
-    })
+    }
 }
 
 /// The most frames [`settle`] renders for a still view with the async cache.
@@ -272,6 +290,9 @@ pub struct FrameFigures {
     /// Milliseconds of the fetchers' CPU time reading and decoding blocks between the step
     /// before this frame and the one after it (asynchronous cache).
     pub fetch_cpu_ms: f64,
+    /// Times a render thread waited on I/O during the frame ([`FrameStats::waits`]): 0 with
+    /// the asynchronous cache.
+    pub waits: u64,
 }
 
 impl FrameFigures {
@@ -304,6 +325,7 @@ impl FrameFigures {
                 .blocks_prefetch_used
                 .saturating_sub(before.blocks_prefetch_used),
             fetch_cpu_ms: (c.fetch_cpu_ms - before.fetch_cpu_ms).max(0.0),
+            waits: stats.waits,
         }
     }
 }

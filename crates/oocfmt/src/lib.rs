@@ -3,7 +3,8 @@
 //!
 //! - [`Writer`] streams blocks into a temporary file and renames it into place when complete.
 //! - [`Reader`] validates header, trailer, directory and metadata at open, loads the proxies,
-//!   and reads blocks by id (positioned reads or a memory map).
+//!   and reads blocks by id (positioned reads, through the page cache or past it
+//!   ([`direct`]), or a memory map).
 //! - [`records`] holds the hot fixed-layout records and their zero-copy views.
 //! - [`verify`] checks a file at three depths and reports every problem with a stable code.
 //!
@@ -25,6 +26,7 @@
 mod bytes;
 pub mod checksum;
 pub mod codec;
+pub mod direct;
 pub mod directory;
 pub mod error;
 pub mod header;
@@ -39,6 +41,9 @@ pub mod verify;
 pub mod writer;
 
 pub use codec::Codec;
+#[cfg(target_os = "linux")]
+pub use direct::DirectSource;
+pub use direct::{Io, IoMode};
 pub use directory::{BlockEntry, BlockKind, CodecId};
 pub use error::{Code, Error, ErrorKind, Result, Severity};
 pub use header::Header;

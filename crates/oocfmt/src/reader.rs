@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use crate::checksum::{crc32c, Crc32c};
 use crate::codec::decode_into;
+use crate::direct::{open_source, Io, IoMode};
 use crate::directory::{check_placement, BlockEntry, BlockKind, ENTRY_LEN};
 use crate::error::{Code, Error, ErrorKind, Result};
 use crate::header::{Header, SectionTable, HEADER_LEN, INCOMPAT_PART_IDS, OFF_HEADER_CRC};
@@ -143,6 +144,14 @@ impl Reader {
         Self::from_source(Box::new(src), name, opts)
     }
 
+    /// Opens a file for positioned reads through the page cache or past it, as `io` asks
+    /// ([`crate::direct`]); [`Reader::io_mode`] says which is in effect.
+    pub fn open_with(path: &Path, opts: ReadOptions, io: Io) -> Result<Reader> {
+        let name: Arc<str> = Arc::from(path.display().to_string());
+        let src = open_source(path, io).map_err(|e| Error::io(e, 0).in_file(&name))?;
+        Self::from_source(src, name, opts)
+    }
+
     /// Opens a file through a read-only memory map (see the `mmap` module for the risk).
     pub fn open_mmap(path: &Path, opts: ReadOptions) -> Result<Reader> {
         let name: Arc<str> = Arc::from(path.display().to_string());
@@ -229,6 +238,11 @@ impl Reader {
     /// The bytes the reader reads from.
     pub fn source(&self) -> &dyn ByteSource {
         self.source.as_ref()
+    }
+
+    /// How the reader's reads meet the operating system's page cache.
+    pub fn io_mode(&self) -> IoMode {
+        self.source.io_mode()
     }
 
     /// Reads, checks and decompresses block `id`.

@@ -4,6 +4,8 @@ use std::fs::File;
 use std::io;
 use std::path::Path;
 
+use crate::direct::IoMode;
+
 /// Random-access bytes of known length.
 pub trait ByteSource: Send + Sync {
     /// Length of the source in bytes.
@@ -20,6 +22,12 @@ pub trait ByteSource: Send + Sync {
     /// The whole source as memory, where it is memory (a map or a buffer): zero-copy access.
     fn as_slice(&self) -> Option<&[u8]> {
         None
+    }
+
+    /// How the source's reads meet the operating system's page cache: through it, unless
+    /// the source reads past it ([`crate::direct`]).
+    fn io_mode(&self) -> IoMode {
+        IoMode::Buffered
     }
 }
 

@@ -23,7 +23,7 @@ use oocfmt_trace::session::{self, frame, Cache, CacheKind};
 use oocfmt_trace::{BlockingCache, Camera, Image, RenderOptions, Scene};
 
 use crate::accuracy::{self, db, reference_options};
-use crate::args::{self, budget_bytes, use_threads, CacheArg, LodArg, View};
+use crate::args::{self, budget_bytes, use_threads, CacheArg, IoArg, LodArg, View};
 use crate::error::{CliError, CliResult};
 use crate::out::outln;
 use crate::render::{settle, warn_missing, write_json};
@@ -43,6 +43,10 @@ pub struct Args {
     /// needs a container converted with `--codec none`)
     #[arg(long, value_enum, default_value = "async", value_delimiter = ',')]
     pub cache: Vec<CacheArg>,
+    /// How the async and blocking caches read blocks (as for `render`): `buffered` or `direct`
+    /// (past the page cache); not with mmap
+    #[arg(long, value_enum, default_value = "buffered")]
+    pub io: IoArg,
     /// LOD representations to compare, comma-separated (one series each with every cache):
     /// voxel, rlod; each must be in the file (`convert --lod both` holds both)
     #[arg(long, value_enum, default_value = "voxel", value_delimiter = ',')]
@@ -140,9 +144,16 @@ pub struct Row {
     pub cache: String,
     pub lod: &'static str,
     pub poe: f32,
+    /// How the cache's reads met the page cache: `buffered`, `direct` or `dontneed`.
+    pub io: &'static str,
     /// Frames rendered before the timed ones: until the view (every camera) found every
     /// block it wants.
     pub settle_frames: u32,
+    /// Times a render thread waited on I/O in those frames (the cold ones): every block read
+    /// with the blocking and mmap caches, none with the async cache.
+    pub settle_waits: u64,
+    /// Times a render thread waited on I/O in the timed frames, all of them.
+    pub waits: u64,
     /// Median over the timed repeats of the time per frame.
     pub ms: f64,
     pub rays_per_second: f64,
@@ -221,7 +232,7 @@ pub fn run(a: &Args) -> CliResult {
         .iter()
         .map(|&l| {
             let l = LodKind::from(l);
-            Ok((l, Arc::new(session::open_scene(&a.model, Some(l))?)))
+            Ok((l, Arc::new(args::open_scene(&a.model, Some(l), a.io)?)))
         })
         .collect::<Result<Vec<_>, CliError>>()?;
     let Some((_, scene)) = scenes.first() else {
@@ -235,6 +246,7 @@ pub fn run(a: &Args) -> CliResult {
         None => vec![a.view.camera(&scene)],
     };
     if kinds.contains(&CacheArg::Mmap) {
+        args::check_io(CacheKind::Mmap, a.io)?;
         // A container mmap cannot map is refused before any rendering.
         open_cache(a, None, CacheKind::Mmap, None)?;
     }
@@ -441,9 +453,11 @@ fn measure(
         ..RenderOptions::default()
     };
     let mut settle_frames = 0;
+    let cold = cache.get().render_waits();
     for camera in cameras {
         settle_frames += settle(scene, cache, camera, &opts)?.frames;
     }
+    let settle_waits = cache.get().render_waits().saturating_sub(cold);
     let touched = Touched::new(cache.get());
     for camera in cameras {
         frame(scene, &touched, camera, &opts)?;
@@ -452,7 +466,7 @@ fn measure(
     let mut pass_ms = Vec::with_capacity(a.repeat as usize);
     let mut last = Vec::new();
     let (mut rays, mut nodes, mut primary) = (0u64, 0u64, Endings::default());
-    let mut bytes_resident = 0;
+    let (mut bytes_resident, mut waits) = (0, 0);
     for _ in 0..a.repeat {
         let (mut ms, mut images) = (0.0, Vec::with_capacity(cameras.len()));
         (rays, nodes, primary) = (0, 0, Endings::default());
@@ -463,6 +477,7 @@ fn measure(
             nodes += stats.nodes_visited;
             add_endings(&mut primary, &stats.primary);
             bytes_resident = stats.cache.bytes_resident;
+            waits += stats.waits;
             images.push(image);
         }
         pass_ms.push(ms);
@@ -480,7 +495,10 @@ fn measure(
         cache: kind.name().to_string(),
         lod: lod.name(),
         poe,
+        io: cache.get().stats().io,
         settle_frames,
+        settle_waits,
+        waits,
         ms: median_pass / frames,
         rays_per_second: rays as f64 / (median_pass / 1e3).max(1e-9),
         nodes_per_ray: nodes as f64 / rays.max(1) as f64,

@@ -65,4 +65,8 @@ impl BlockCache for Touched<'_> {
     fn stats(&self) -> CacheStats {
         self.inner.stats()
     }
+
+    fn render_waits(&self) -> u64 {
+        self.inner.render_waits()
+    }
 }

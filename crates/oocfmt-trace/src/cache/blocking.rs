@@ -9,6 +9,7 @@
 use std::collections::{BTreeMap, HashMap};
 use std::sync::{Arc, Mutex, MutexGuard};
 
+use super::waits::Waits;
 use super::{BlockCache, CacheStats, Data, MissingBlock};
 use crate::blocks::{TreeletData, TriangleData};
 use crate::scene::Scene;
@@ -41,6 +42,8 @@ pub struct BlockingCache {
     budget: usize,
     mode: &'static str,
     table: Mutex<Table>,
+    /// Misses read on render threads: each a wait on I/O.
+    waits: Waits,
 }
 
 impl BlockingCache {
@@ -57,6 +60,7 @@ impl BlockingCache {
             budget: budget_bytes,
             mode,
             table: Mutex::new(Table::default()),
+            waits: Waits::default(),
         }
     }
 
@@ -89,7 +93,7 @@ impl BlockingCache {
                 return Some(data);
             }
         }
-        let loaded = load(&self.scene);
+        let loaded = self.waits.read(|| load(&self.scene));
         let mut t = self.lock();
         let data = match loaded {
             Ok(d) => d,
@@ -168,6 +172,8 @@ impl BlockCache for BlockingCache {
         let t = self.lock();
         CacheStats {
             mode: self.mode,
+            io: self.scene.reader().io_mode().name(),
+            render_waits: self.waits.count(),
             budget_bytes: self.budget as u64,
             bytes_resident: t.resident as u64,
             peak_bytes_resident: t.peak as u64,
@@ -186,5 +192,9 @@ impl BlockCache for BlockingCache {
             // What only the asynchronous cache does stays 0.
             ..CacheStats::default()
         }
+    }
+
+    fn render_waits(&self) -> u64 {
+        self.waits.count()
     }
 }

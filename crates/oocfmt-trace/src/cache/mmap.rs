@@ -76,4 +76,8 @@ impl BlockCache for MmapCache {
     fn stats(&self) -> CacheStats {
         self.inner.stats()
     }
+
+    fn render_waits(&self) -> u64 {
+        self.inner.render_waits()
+    }
 }

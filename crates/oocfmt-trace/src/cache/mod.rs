@@ -6,6 +6,7 @@ pub mod blocking;
 pub mod mmap;
 pub mod policy;
 pub mod prefetch;
+mod waits;
 
 use std::sync::Arc;
 
@@ -39,6 +40,12 @@ pub trait BlockCache: Send + Sync {
     fn end_frame(&self) {}
     /// The cache's counters so far (over all frames since it was made).
     fn stats(&self) -> CacheStats;
+    /// Block reads made on render threads so far, each a wait on I/O
+    /// ([`CacheStats::render_waits`]); cheap, so a frame reads it before and after itself. A
+    /// cache that never reads on a render thread keeps the default, 0.
+    fn render_waits(&self) -> u64 {
+        0
+    }
 }
 
 /// What the rays that wanted a block make of its priority, under either fetch order
@@ -79,6 +86,10 @@ impl Wish {
 pub struct CacheStats {
     /// Which cache: `blocking`, `async` or `mmap`.
     pub mode: &'static str,
+    /// How the cache's reads meet the operating system's page cache: `buffered`, `direct`
+    /// (`O_DIRECT`) or `dontneed` (buffered, each range dropped after it was read), as
+    /// [`oocfmt::IoMode::name`]; the mmap cache's map is `buffered`.
+    pub io: &'static str,
     /// Asynchronous cache: the fetch order and the eviction policy (empty for the others).
     pub fetch_order: &'static str,
     /// Asynchronous cache: the eviction policy, `lru` or `second-chance` (empty for the others).
@@ -123,6 +134,10 @@ pub struct CacheStats {
     /// Asynchronous cache: the fetchers' CPU time spent reading and decoding blocks so far, in
     /// milliseconds (wall time where the system has no per-thread clock).
     pub fetch_cpu_ms: f64,
+    /// Block reads made on render threads (the rayon pool frames are traced on), each one a
+    /// render thread waiting on I/O: every miss of the blocking and mmap caches, and never one
+    /// in the asynchronous cache, whose fetchers read.
+    pub render_waits: u64,
     /// Blocks that could not be read or decoded, by id, with the reason; never retried.
     pub missing_blocks: Vec<MissingBlock>,
 }

@@ -1,6 +1,7 @@
 //! The tracer's integration tests, one binary (one link instead of nine): caches, kernels against
 //! an f64 reference, hard cases, packets against single rays, references, secondary rays,
-//! walkthrough sessions, malformed files, and the fuzz corpus replayed on stable.
+//! walkthrough sessions, render threads waiting on I/O, malformed files, and the fuzz corpus
+//! replayed on stable.
 
 mod caches;
 mod common;
@@ -16,3 +17,4 @@ mod reference;
 mod secondary;
 mod section;
 mod session;
+mod waits;
