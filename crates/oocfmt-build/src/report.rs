@@ -71,6 +71,13 @@ pub struct ConvertReport {
     pub peak_memory_bytes: Option<u64>,
     /// The memory limit the build ran under, in bytes.
     pub mem_limit_bytes: u64,
+    /// The most bytes the spill files and the output took on disk at once.
+    pub peak_disk_bytes: u64,
+    /// Bytes per triangle of the import's spill records (37 for positions only).
+    pub spill_bytes_per_triangle: f64,
+    /// The disk use the free-space check estimated before the conversion; `None` when an
+    /// input's size was unknown (standard input) and the check was skipped.
+    pub disk_estimate_bytes: Option<u64>,
     /// Present when the scene was over the memory limit and built in chunks.
     pub out_of_core: Option<crate::ooc::OocStats>,
 }

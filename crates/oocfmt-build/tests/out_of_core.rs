@@ -180,3 +180,142 @@ fn triangles_in_no_part_get_the_same_part_in_core_and_out_of_core() {
     assert_eq!(ids[0].len(), 120);
     assert_eq!(ids[0], ids[1]);
 }
+
+/// Lists, at the start of each phase, whether each watched folder holds anything.
+struct Watch {
+    dirs: Vec<std::path::PathBuf>,
+    /// Per phase: its name and, per folder, its entry count.
+    seen: Vec<(String, Vec<usize>)>,
+}
+
+impl oocfmt_build::progress::Progress for Watch {
+    fn phase(&mut self, name: &str, _total: Option<u64>) {
+        let counts = self
+            .dirs
+            .iter()
+            .map(|d| std::fs::read_dir(d).unwrap().count())
+            .collect();
+        self.seen.push((name.to_string(), counts));
+    }
+    fn advance(&mut self, _done: u64) {}
+    fn finish_phase(&mut self) {}
+}
+
+#[test]
+fn spill_files_go_to_the_tmp_dir_and_the_report_gives_the_disk_used() {
+    let dir = tempfile::tempdir().unwrap();
+    let (inputs, outputs, tmp) = (
+        dir.path().join("in"),
+        dir.path().join("out"),
+        dir.path().join("tmp"),
+    );
+    for d in [&inputs, &outputs, &tmp] {
+        std::fs::create_dir(d).unwrap();
+    }
+    let obj = inputs.join("mb.obj");
+    let opts = MandelbulbOptions {
+        triangles: 25_000,
+        ..MandelbulbOptions::default()
+    };
+    mandelbulb::write_obj(&obj, &opts, &mut |_, _| {}).unwrap();
+    let beside = outputs.join("beside.oocf");
+    let default = convert(
+        std::slice::from_ref(&obj),
+        &beside,
+        &options(6000),
+        &mut NoProgress,
+    )
+    .unwrap();
+
+    let elsewhere = outputs.join("elsewhere.oocf");
+    let mut watch = Watch {
+        dirs: vec![outputs.clone(), tmp.clone()],
+        seen: Vec::new(),
+    };
+    let opts = ConvertOptions {
+        tmp_dir: Some(tmp.clone()),
+        ..options(6000)
+    };
+    let report = convert(std::slice::from_ref(&obj), &elsewhere, &opts, &mut watch).unwrap();
+    // While the chunks were split and built, the spill folder was in the tmp dir and the
+    // output's folder held only the first output.
+    let split = watch.seen.iter().find(|(p, _)| p == "split").unwrap();
+    assert_eq!(split.1, [1, 1], "{:?}", watch.seen);
+    assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), 0);
+    assert_eq!(
+        std::fs::read(&beside).unwrap(),
+        std::fs::read(&elsewhere).unwrap()
+    );
+
+    // Positions only: a flag byte and 36 bytes of positions a triangle.
+    let triangles = report.import.triangles_out as f64;
+    assert_eq!(report.spill_bytes_per_triangle, 37.0);
+    assert_eq!(default.spill_bytes_per_triangle, 37.0);
+    assert!(report.peak_disk_bytes >= report.file_bytes);
+    assert!(report.peak_disk_bytes as f64 >= 37.0 * triangles);
+    // The estimate made before the work is pessimistic.
+    let estimate = report.disk_estimate_bytes.unwrap();
+    assert!(
+        estimate >= report.peak_disk_bytes,
+        "{estimate} {}",
+        report.peak_disk_bytes
+    );
+
+    // A tmp dir that is not there fails before any output.
+    let opts = ConvertOptions {
+        tmp_dir: Some(dir.path().join("no-such-tmp")),
+        ..options(6000)
+    };
+    let missing = outputs.join("missing.oocf");
+    let err = convert(&[obj], &missing, &opts, &mut NoProgress).unwrap_err();
+    assert!(err.to_string().contains("no-such-tmp"), "{err}");
+    assert!(!missing.exists());
+}
+
+/// A real full disk. Needs `OOCFMT_SMALL_FS`: a folder on a file system with well under 1 MiB
+/// free, e.g. `mount -t tmpfs -o size=512k tmpfs /mnt/small`. A file input is refused before
+/// any work; the same input through a FIFO (size unknown, so not checked) fails when the disk
+/// fills, and either way the small disk is left empty and the output untouched.
+#[test]
+#[ignore = "needs OOCFMT_SMALL_FS, a folder on a nearly full file system"]
+fn a_real_full_disk_is_refused_up_front_or_fails_cleanly() {
+    let Some(small) = std::env::var_os("OOCFMT_SMALL_FS").map(std::path::PathBuf::from) else {
+        eprintln!("OOCFMT_SMALL_FS is not set: nothing to test");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("mb.obj");
+    let opts = MandelbulbOptions {
+        triangles: 25_000,
+        ..MandelbulbOptions::default()
+    };
+    mandelbulb::write_obj(&obj, &opts, &mut |_, _| {}).unwrap();
+    let out = dir.path().join("out.oocf");
+    std::fs::write(&out, b"an older file").unwrap();
+    let opts = ConvertOptions {
+        tmp_dir: Some(small.clone()),
+        ..options(6000)
+    };
+    let err = convert(std::slice::from_ref(&obj), &out, &opts, &mut NoProgress).unwrap_err();
+    let m = err.to_string();
+    assert!(m.contains("not enough free disk space in"), "{m}");
+    assert_eq!(std::fs::read_dir(&small).unwrap().count(), 0);
+
+    let fifo = dir.path().join("fifo.obj");
+    rustix::fs::mkfifoat(rustix::fs::CWD, &fifo, rustix::fs::Mode::RWXU).unwrap();
+    let (from, to) = (obj.clone(), fifo.clone());
+    // The writer ends when the reader stops reading (a broken pipe).
+    let writer = std::thread::spawn(move || {
+        let mut pipe = std::fs::OpenOptions::new().write(true).open(to).unwrap();
+        let _ = std::io::copy(&mut std::fs::File::open(from).unwrap(), &mut pipe);
+    });
+    let err = convert(std::slice::from_ref(&fifo), &out, &opts, &mut NoProgress).unwrap_err();
+    writer.join().unwrap();
+    let m = err.to_string();
+    assert!(
+        m.contains("No space left on device") && m.contains("--tmp-dir"),
+        "{m}"
+    );
+    assert_eq!(std::fs::read_dir(&small).unwrap().count(), 0);
+    assert_eq!(std::fs::read(&out).unwrap(), b"an older file");
+}

@@ -3,14 +3,13 @@
 //! the proxies. Chunk blocks were encoded with chunk-local ids; their child-block, triangle-
 //! block and proxy node-block references are rewritten to the final ids on the way out.
 
-use std::fs::File;
-use std::os::unix::fs::FileExt;
 use std::path::Path;
 
 use oocfmt::records::{Node, TreeletBlock, PROXY_LEN};
 use oocfmt::{BlockKind, EncodedBlock, Metadata, WriteOptions, WriteSummary, Writer};
 
-use super::chunk::{ChunkOut, SpilledBlock};
+use super::chunk::{BlockSpill, ChunkOut, SpilledBlock};
+use super::disk::SpillDisk;
 use super::OocError;
 use crate::layout::{Appender, LayoutError, RawBlock, ENCODE_BATCH};
 use crate::progress::Progress;
@@ -158,8 +157,6 @@ pub struct Parts<'a> {
     pub order: &'a Order,
     /// The top's treelet blocks, encoded with final ids.
     pub top: &'a [RawBlock],
-    /// The spill file holding the chunks' blocks.
-    pub spill: &'a Path,
     /// Final proxy records in id order.
     pub proxies: &'a [u8],
     /// What the LOD entries hold, the part word included: how spilled treelet blocks parse.
@@ -167,27 +164,30 @@ pub struct Parts<'a> {
 }
 
 /// Writes every block in file order, then the proxies, then the metadata. Top blocks come
-/// from memory, chunk blocks from the spill file.
+/// from memory, chunk blocks from the `spill`, which frees them as they are read; `disk`
+/// follows the output's growth.
 pub fn write(
     path: &Path,
     write: WriteOptions,
     parts: &Parts,
+    spill: &mut BlockSpill,
+    disk: &SpillDisk,
     metadata: &Metadata,
     progress: &mut dyn Progress,
 ) -> Result<WriteSummary, OocError> {
     let Parts {
         order,
         top: top_raw,
-        spill,
         proxies,
         lod,
     } = *parts;
     let block_size = 1usize << write.block_size_log2.min(20);
-    let spill_file = File::open(spill).map_err(|e| OocError::spill(spill, e))?;
+    spill.close();
     let per_block = (block_size / PROXY_LEN).max(1);
     let proxy_blocks = proxies.len().div_ceil(PROXY_LEN * per_block);
     progress.phase("write", Some((order.blocks.len() + proxy_blocks) as u64));
     let mut writer = Writer::create(path, write)?;
+    let temp = writer.temp_path().to_path_buf();
     let mut appender = Appender::new(&mut writer, write.codec);
     let mut done = 0u64;
     for batch in order.blocks.chunks(ENCODE_BATCH) {
@@ -199,10 +199,7 @@ pub fn write(
                     .cloned()
                     .ok_or_else(|| LayoutError::Internal("a top block is missing").into()),
                 Source::Chunk(i, b) => {
-                    let mut raw = vec![0u8; usize::try_from(b.len).unwrap_or(usize::MAX)];
-                    spill_file
-                        .read_exact_at(&mut raw, b.offset)
-                        .map_err(|e| OocError::spill(spill, e))?;
+                    let mut raw = spill.read(&b)?;
                     if b.kind == BlockKind::Treelet {
                         order.patch_treelets(i, &mut raw, lod)?;
                     }
@@ -216,6 +213,10 @@ pub fn write(
             })
             .collect::<Result<_, OocError>>()?;
         appender.push(&raws)?;
+        // What the output holds so far (its write buffer aside), for the peak disk use.
+        if let Ok(m) = std::fs::metadata(&temp) {
+            disk.set_output(m.len());
+        }
         done += batch.len() as u64;
         progress.advance(done);
     }

@@ -3,12 +3,12 @@
 //! encoded with chunk-local block ids and spilled; the top treelet goes back to the caller,
 //! which lays it out with the top of the scene.
 
-use std::fs::File;
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use oocfmt::BlockKind;
 
+pub use super::blocks::{BlockSpill, SpilledBlock};
+use super::disk::SpillDisk;
 use super::soup::SoupReader;
 use super::split::Chunk;
 use super::OocError;
@@ -79,16 +79,6 @@ impl SceneFacts {
     }
 }
 
-/// A block written to the spill file, by position.
-#[derive(Clone, Copy, Debug)]
-pub struct SpilledBlock {
-    pub kind: BlockKind,
-    pub level: u16,
-    pub item_count: u32,
-    pub offset: u64,
-    pub len: u64,
-}
-
 /// A node of a chunk's top treelet, for the top layout.
 #[derive(Clone, Debug)]
 pub enum UpperNode {
@@ -150,56 +140,17 @@ pub struct PendingRay {
     pub best: Option<(f64, Seen)>,
 }
 
-/// Spills raw blocks to one file.
-pub struct BlockSpill {
-    path: PathBuf,
-    file: File,
-    at: u64,
-}
-
-impl BlockSpill {
-    pub fn create(path: &Path) -> Result<BlockSpill, OocError> {
-        let file = File::create(path).map_err(|e| OocError::spill(path, e))?;
-        Ok(BlockSpill {
-            path: path.to_path_buf(),
-            file,
-            at: 0,
-        })
-    }
-
-    fn push(
-        &mut self,
-        kind: BlockKind,
-        level: u16,
-        item_count: u32,
-        raw: &[u8],
-    ) -> Result<SpilledBlock, OocError> {
-        self.file
-            .write_all(raw)
-            .map_err(|e| OocError::spill(&self.path, e))?;
-        let b = SpilledBlock {
-            kind,
-            level,
-            item_count,
-            offset: self.at,
-            len: raw.len() as u64,
-        };
-        self.at += raw.len() as u64;
-        Ok(b)
-    }
-
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-}
-
-/// Loads a chunk's spill file as a mesh in the scene's schema; returns it with, for each
-/// triangle, whether this is its primary copy.
-fn load_mesh(chunk: &Chunk, facts: &SceneFacts) -> Result<(Mesh, Vec<bool>), OocError> {
+/// Loads a chunk's spill run as a mesh in the scene's schema, consuming the run; returns the
+/// mesh with, for each triangle, whether this is its primary copy.
+fn load_mesh(
+    chunk: &Chunk,
+    facts: &SceneFacts,
+    disk: &Arc<SpillDisk>,
+) -> Result<(Mesh, Vec<bool>), OocError> {
     let mut sink = MeshSink::for_chunk(facts.schema.clone());
-    let mut primary = Vec::new();
-    let at = Location::file(chunk.path.display().to_string());
-    for record in SoupReader::open(&chunk.path, chunk.count)? {
+    let mut primary = Vec::with_capacity(usize::try_from(chunk.count).unwrap_or(0));
+    let at = Location::file("chunk spill");
+    for record in SoupReader::open(&chunk.run, true, disk.clone()) {
         let r = record?;
         let material = facts
             .material_index
@@ -223,12 +174,14 @@ fn load_mesh(chunk: &Chunk, facts: &SceneFacts) -> Result<(Mesh, Vec<bool>), Ooc
     Ok((mesh, primary))
 }
 
-/// What every chunk of one build is built with, and the spill file their blocks go to.
+/// What every chunk of one build is built with, and the spill their blocks go to.
 pub struct ChunkBuilder<'a> {
     pub facts: &'a SceneFacts,
     pub kd: &'a KdBuildOptions,
     pub layout: &'a LayoutOptions,
     pub spill: BlockSpill,
+    /// Where the chunks' runs are accounted (reading one deletes it).
+    pub disk: &'a Arc<SpillDisk>,
 }
 
 impl ChunkBuilder<'_> {
@@ -242,7 +195,7 @@ impl ChunkBuilder<'_> {
         rays: &mut [&mut [PendingRay]],
         planes: &[(usize, PlaneFit)],
     ) -> Result<ChunkOut, OocError> {
-        let (mesh, primary) = load_mesh(chunk, self.facts)?;
+        let (mesh, primary) = load_mesh(chunk, self.facts, self.disk)?;
         let plane_pieces = plane_pieces(&mesh, chunk, planes);
         let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
         let kd = self.kd;

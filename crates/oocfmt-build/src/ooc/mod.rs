@@ -1,17 +1,24 @@
 //! The out-of-core build (Áfra et al. 2012, §4.1; Correa et al. 2002, §3): the imported scene
-//! lives in a spill file, cells too large for memory are split at their spatial median in
+//! lives in a spill run (`soup`), cells too large for memory are split at their spatial median in
 //! streaming passes (`split`), and each chunk that fits is built, sampled and laid out in
 //! memory on its own (`chunk`), its deeper blocks spilled. The median-split nodes and the
 //! chunks' top treelets form a small tree laid out last (`top`), and `assemble` writes
 //! everything in the order the spec requires. Memory holds one chunk at a time, plus the top.
 
 mod assemble;
+mod blocks;
 mod chunk;
+pub mod disk;
+mod record;
+mod segments;
 pub mod soup;
+pub mod space;
 mod split;
 mod tee;
 mod top;
 
+#[cfg(test)]
+mod full_disk;
 #[cfg(test)]
 mod tests;
 
@@ -49,16 +56,41 @@ pub enum OocError {
         /// The I/O error.
         source: std::io::Error,
     },
-    /// A triangle spill file's length is not the record size times the records written to it.
-    #[error("spill file {path}: {len} bytes, expected {count} records")]
+    /// Writing a spill file failed, most likely for want of space (see the message).
+    #[error(
+        "writing spill file {path} failed after {written} bytes of it{}: {source}",
+        space_hint(source)
+    )]
+    SpillWrite {
+        /// The spill segment being written.
+        path: String,
+        /// Bytes of its run that had reached the disk.
+        written: u64,
+        /// The I/O error (`StorageFull` when the disk is full).
+        source: std::io::Error,
+    },
+    /// A spill file's length is not what was written to it.
+    #[error("spill file {path}: {len} bytes, expected {expected}")]
     SpillLength {
         /// The spill file.
         path: String,
         /// Its length in bytes.
         len: u64,
-        /// Records it should hold.
-        count: u64,
+        /// Bytes written to it.
+        expected: u64,
     },
+    /// A spill file does not hold the records written to it.
+    #[error("spill file {path}: {what}")]
+    SpillCorrupt {
+        /// The spill file.
+        path: String,
+        /// What is wrong.
+        what: &'static str,
+    },
+    /// The free space cannot hold what the conversion is estimated to need: refused before
+    /// any work.
+    #[error(transparent)]
+    NoSpace(#[from] space::NoSpace),
     /// The import kept no triangle, or turning the spilled import back into an in-memory mesh
     /// failed.
     #[error(transparent)]
@@ -82,6 +114,33 @@ impl OocError {
             source,
         }
     }
+
+    /// A [`OocError::SpillCorrupt`] for `path`.
+    pub fn corrupt(path: &Path, what: &'static str) -> OocError {
+        OocError::SpillCorrupt {
+            path: path.display().to_string(),
+            what,
+        }
+    }
+
+    /// The I/O error kind behind a spill failure (`Other` for the rest), so that a full disk
+    /// stays recognisable through layers that keep only a message.
+    pub fn io_kind(&self) -> std::io::ErrorKind {
+        match self {
+            OocError::Spill { source, .. } | OocError::SpillWrite { source, .. } => source.kind(),
+            _ => std::io::ErrorKind::Other,
+        }
+    }
+}
+
+/// A hint for a write that failed for want of space.
+fn space_hint(e: &std::io::Error) -> &'static str {
+    match e.kind() {
+        std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded => {
+            " (out of disk space: free some, or put spill files elsewhere with --tmp-dir)"
+        }
+        _ => "",
+    }
 }
 
 /// What the out-of-core build did, for the report.
@@ -101,8 +160,9 @@ pub struct OocStats {
     pub top_lod_nodes: u64,
 }
 
-/// Builds the container at `output` from the spill file of `soup`, holding at most about
-/// `chunk_triangles` triangles in memory at once. Spill files go to `dir`.
+/// Builds the container at `output` from the spill run of `soup`, holding at most about
+/// `chunk_triangles` triangles in memory at once. Spill files go to `dir`; each pass frees
+/// its input as it reads it, and `soup.disk` counts what they take.
 pub fn build(
     soup: Soup,
     output: &Path,
@@ -130,10 +190,11 @@ pub fn build(
         &assemble::Parts {
             order: &top.order,
             top: &top_raw,
-            spill: chunks.spill.path(),
             proxies: &proxies,
             lod: b.facts.kinds,
         },
+        &mut chunks.spill,
+        &soup.disk,
         &metadata,
         progress,
     )?;
@@ -240,12 +301,17 @@ impl<'a> OocBuild<'a> {
             colour: &colour,
             part: &part,
         });
+        let to = split::SpillTo {
+            dir: self.dir,
+            disk: &self.soup.disk,
+        };
+        // The split consumes the import's run.
+        let run = self.soup.run.clone();
         split::split(
-            &self.soup.path,
-            self.soup.count,
+            run,
             self.soup.bounds,
             self.budget,
-            self.dir,
+            &to,
             rlods.as_ref(),
             progress,
         )
@@ -269,7 +335,8 @@ impl<'a> OocBuild<'a> {
             facts: &self.facts,
             kd: self.kd,
             layout: self.layout,
-            spill: BlockSpill::create(&self.dir.join("blocks.spill"))?,
+            spill: BlockSpill::new(self.dir, self.soup.disk.clone()),
+            disk: &self.soup.disk,
         };
         let mut outs: Vec<ChunkOut> = Vec::with_capacity(tree.chunks.len());
         let mut chunk_proxies = Vec::new();
@@ -292,7 +359,6 @@ impl<'a> OocBuild<'a> {
                     p.widen(piece);
                 }
             }
-            std::fs::remove_file(&c.path).map_err(|e| OocError::spill(&c.path, e))?;
             let n = u32::try_from(out.proxies.len() / oocfmt::records::PROXY_LEN)
                 .map_err(|_| LayoutError::TooMany("proxies"))?;
             proxy_count = proxy_count

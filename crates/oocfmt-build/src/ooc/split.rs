@@ -5,8 +5,11 @@
 //! the cell, so thin diagonal triangles are not copied where they do not reach.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
+use std::sync::Arc;
 
+use super::disk::SpillDisk;
+use super::segments::Run;
 use super::soup::{SoupReader, SoupWriter};
 use super::OocError;
 use crate::kdtree::clip_triangle;
@@ -27,10 +30,11 @@ pub enum TopNode {
     Chunk(usize),
 }
 
-/// A cell small enough to build in memory: its spill file, its place in the tree.
+/// A cell small enough to build in memory: its spill run, its place in the tree.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Chunk {
-    pub path: PathBuf,
+    /// Its triangles (consumed, so gone from the disk, once the chunk is built).
+    pub run: Run,
     pub count: u64,
     pub cell: Bounds,
     /// Node level of the chunk's root below the scene root (0 for the root itself).
@@ -71,55 +75,63 @@ pub type TrianglePart<'a> = &'a dyn Fn(&InputTriangle) -> Option<u32>;
 /// Deepest median split: leaves the in-core builds room under the format's 128 levels.
 pub const MAX_SPLIT_DEPTH: u32 = 48;
 
-/// Splits the soup at `path` (`count` records over `cell`) until every chunk holds at most
-/// `budget` triangles. Chunks come out left to right; their files replace the input's, which is
-/// deleted once split.
+/// Where a split writes its spill runs and what it charges them to.
+pub struct SpillTo<'a> {
+    pub dir: &'a Path,
+    pub disk: &'a Arc<SpillDisk>,
+}
+
+/// Splits the soup `run` over `cell` until every chunk holds at most `budget` triangles.
+/// Chunks come out left to right; their runs replace the input's, which each pass consumes as
+/// it reads it.
 pub fn split(
-    path: &Path,
-    count: u64,
+    run: Run,
     cell: Bounds,
     budget: u64,
-    dir: &Path,
+    to: &SpillTo,
     rlods: Option<&RlodMoments>,
     progress: &mut dyn Progress,
 ) -> Result<TopTree, OocError> {
     let mut top = TopTree::default();
     let mut done = 0u64;
+    // Names each pass's runs: a top node id can come back after a pass that made no progress.
+    let mut pass = 0usize;
+    let count = run.count;
     progress.phase("split", Some(count));
     let mut stack = vec![Pending {
         node: 0,
-        file: path.to_path_buf(),
-        count,
+        run,
         cell,
         depth: 0,
         ancestors: Vec::new(),
     }];
     top.nodes.push(TopNode::Chunk(0));
-    while let Some(p) = stack.pop() {
+    while let Some(mut p) = stack.pop() {
         let cut = Cut::middle(&p.cell);
-        let splittable = p.count > budget && p.depth < MAX_SPLIT_DEPTH && cut.inside();
+        let n = p.run.count;
+        let splittable = n > budget && p.depth < MAX_SPLIT_DEPTH && cut.inside();
         let mut moments = rlods
             .filter(|r| splittable && is_lod_depth(p.depth, r.treelet_height))
             .map(|r| (PlaneMoments::new(p.cell), r));
         let halves = if splittable {
-            let id = top.nodes.len();
-            Some(split_file(&p, &cut, dir, id, moments.as_mut())?)
+            pass += 1;
+            Some(split_run(&p, &cut, to, pass, moments.as_mut())?)
         } else {
             None
         };
         match halves {
             // Some triangles stayed on one side only: the split made progress.
-            Some([l, r]) if l.1 < p.count || r.1 < p.count => {
+            Some([l, r]) if l.count < n || r.count < n => {
                 let plane = moments.map(|(m, _)| m.plane());
-                top.divide(p, &cut, [l, r], plane, &mut stack)?;
+                top.divide(p, &cut, [l, r], plane, to.disk, &mut stack)?;
             }
             other => {
                 if let Some([l, r]) = other {
-                    for f in [l.0, r.0] {
-                        std::fs::remove_file(&f).map_err(|e| OocError::spill(&f, e))?;
-                    }
+                    // The pass consumed the input: every triangle went to both halves, which
+                    // together give it back.
+                    p.run = merge_halves(&l, &r, to, pass)?;
                 }
-                done += p.count;
+                done += n;
                 top.finish_chunk(p, budget);
                 progress.advance(done.min(count));
             }
@@ -129,12 +141,11 @@ pub fn split(
     Ok(top)
 }
 
-/// A cell waiting to be split or kept: the top node to fill, its spill file and record count,
-/// its bounds, its depth and the top nodes above it.
+/// A cell waiting to be split or kept: the top node to fill, its spill run, its bounds, its
+/// depth and the top nodes above it.
 struct Pending {
     node: usize,
-    file: PathBuf,
-    count: u64,
+    run: Run,
     cell: Bounds,
     depth: u32,
     ancestors: Vec<usize>,
@@ -166,34 +177,34 @@ impl Cut {
 }
 
 impl TopTree {
-    /// Makes `p`'s node an inner node cut at `cut` over the non-empty `halves` (file, count),
-    /// with the R-LOD `plane` fitted on the way, and stacks the halves, left on top. The input
-    /// file and any empty half's file are deleted.
+    /// Makes `p`'s node an inner node cut at `cut` over the non-empty `halves`, with the R-LOD
+    /// `plane` fitted on the way, and stacks the halves, left on top. The input run was
+    /// consumed by the pass; an empty half's run has no segments.
     fn divide(
         &mut self,
         p: Pending,
         cut: &Cut,
-        halves: [(PathBuf, u64); 2],
+        halves: [Run; 2],
         plane: Option<PlaneFit>,
+        disk: &SpillDisk,
         stack: &mut Vec<Pending>,
     ) -> Result<(), OocError> {
-        std::fs::remove_file(&p.file).map_err(|e| OocError::spill(&p.file, e))?;
         let (lc, rc) = p.cell.split(cut.axis, cut.mid);
         let mut children = [None, None];
         let mut path_down = p.ancestors;
         path_down.push(p.node);
         // Pushed right first so the left subtree is numbered and finished first.
         let mut pending = Vec::new();
-        for (slot, ((f, c), cc)) in children.iter_mut().zip(halves.into_iter().zip([lc, rc])) {
-            if c == 0 {
-                std::fs::remove_file(&f).map_err(|e| OocError::spill(&f, e))?;
+        for (slot, (run, cc)) in children.iter_mut().zip(halves.into_iter().zip([lc, rc])) {
+            if run.count == 0 {
+                run.remove(disk)?;
                 continue;
             }
             let id = self.nodes.len();
             // Filled in when the child's own turn comes.
             self.nodes.push(TopNode::Chunk(usize::MAX));
             *slot = Some(id);
-            pending.push((id, f, c, cc));
+            pending.push((id, run, cc));
         }
         if let Some(plane) = plane {
             self.planes.insert(p.node, plane);
@@ -205,11 +216,10 @@ impl TopTree {
                 children,
             };
         }
-        for (node, file, count, cell) in pending.into_iter().rev() {
+        for (node, run, cell) in pending.into_iter().rev() {
             stack.push(Pending {
                 node,
-                file,
-                count,
+                run,
                 cell,
                 depth: p.depth + 1,
                 ancestors: path_down.clone(),
@@ -220,15 +230,15 @@ impl TopTree {
 
     /// Keeps `p` as a chunk (an oversized one when it is over the `budget`).
     fn finish_chunk(&mut self, p: Pending, budget: u64) {
-        if p.count > budget {
+        if p.run.count > budget {
             self.oversized.push(self.chunks.len());
         }
         if let Some(slot) = self.nodes.get_mut(p.node) {
             *slot = TopNode::Chunk(self.chunks.len());
         }
         self.chunks.push(Chunk {
-            path: p.file,
-            count: p.count,
+            count: p.run.count,
+            run: p.run,
             cell: p.cell,
             depth: p.depth,
             ancestors: p.ancestors,
@@ -236,20 +246,20 @@ impl TopTree {
     }
 }
 
-/// One streaming pass: every record of `p`'s file to the side(s) of the `cut` its clipped part
-/// reaches, and into `moments` when given. The sides' files are named after top node `id`.
-/// Returns each side's file and count.
-fn split_file(
+/// One streaming pass, consuming `p`'s run: every record to the side(s) of the `cut` its
+/// clipped part reaches, and into `moments` when given. The sides' runs are named after pass
+/// `id`.
+fn split_run(
     p: &Pending,
     cut: &Cut,
-    dir: &Path,
+    to: &SpillTo,
     id: usize,
     mut moments: Option<&mut (PlaneMoments, &RlodMoments)>,
-) -> Result<[(PathBuf, u64); 2], OocError> {
+) -> Result<[Run; 2], OocError> {
     let (axis, mid) = (cut.axis, cut.mid);
-    let mut left = SoupWriter::create(&dir.join(format!("n{id}-l.soup")))?;
-    let mut right = SoupWriter::create(&dir.join(format!("n{id}-r.soup")))?;
-    for record in SoupReader::open(&p.file, p.count)? {
+    let mut left = SoupWriter::create(&to.dir.join(format!("p{id}-l.soup")), to.disk.clone());
+    let mut right = SoupWriter::create(&to.dir.join(format!("p{id}-r.soup")), to.disk.clone());
+    for record in SoupReader::open(&p.run, true, to.disk.clone()) {
         let t = record?;
         if let Some((m, r)) = moments.as_deref_mut() {
             m.add(t.triangle.positions, (r.part)(&t.triangle), || {
@@ -276,6 +286,20 @@ fn split_file(
     Ok([left.finish()?, right.finish()?])
 }
 
+/// The run a split that made no progress consumed, from its two halves: each holds every
+/// record in the input's order, primary on the side of its centroid. Consumes both halves;
+/// the result is named after pass `id`.
+fn merge_halves(l: &Run, r: &Run, to: &SpillTo, id: usize) -> Result<Run, OocError> {
+    let mut out = SoupWriter::create(&to.dir.join(format!("p{id}-m.soup")), to.disk.clone());
+    let rights = SoupReader::open(r, true, to.disk.clone());
+    for (a, b) in SoupReader::open(l, true, to.disk.clone()).zip(rights) {
+        let (mut a, b) = (a?, b?);
+        a.primary |= b.primary;
+        out.push(&a)?;
+    }
+    out.finish()
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::soup::SoupTriangle;
@@ -290,11 +314,25 @@ mod tests {
         }
     }
 
+    /// A run of `input` in `dir`, in segments of about three records.
+    fn spill(dir: &Path, input: &[SoupTriangle]) -> Result<(Run, Arc<SpillDisk>), OocError> {
+        let disk = Arc::new(SpillDisk::with_segments(3 * 37, None));
+        let mut w = SoupWriter::create(&dir.join("all.soup"), disk.clone());
+        for t in input {
+            w.push(t)?;
+        }
+        Ok((w.finish()?, disk))
+    }
+
+    fn files_in(dir: &Path) -> Result<usize, OocError> {
+        Ok(std::fs::read_dir(dir)
+            .map_err(|e| OocError::spill(dir, e))?
+            .count())
+    }
+
     #[test]
     fn every_triangle_keeps_exactly_one_primary_copy() -> Result<(), OocError> {
         let dir = tempfile::tempdir().map_err(|e| OocError::spill(Path::new("."), e))?;
-        let path = dir.path().join("all.soup");
-        let mut w = SoupWriter::create(&path)?;
         // 64 small triangles along x, and 8 wide ones that straddle many cuts.
         let mut input = Vec::new();
         for k in 0..64 {
@@ -303,22 +341,25 @@ mod tests {
         for k in 0..8 {
             input.push(tri(k as f32 * 8.0 + 0.25, 20.0));
         }
-        for t in &input {
-            w.push(t)?;
-        }
-        let (path, n) = w.finish()?;
+        let (run, disk) = spill(dir.path(), &input)?;
         let cell = Bounds {
             min: [0.0; 3],
             max: [84.25, 1.0, 0.0],
         };
-        let top = split(&path, n, cell, 10, dir.path(), None, &mut NoProgress)?;
+        let to = SpillTo {
+            dir: dir.path(),
+            disk: &disk,
+        };
+        let top = split(run, cell, 10, &to, None, &mut NoProgress)?;
         assert!(top.chunks.len() >= 8, "{} chunks", top.chunks.len());
         assert!(top.oversized.is_empty());
         let mut primaries = Vec::new();
         let mut copies = 0;
+        let mut segments = 0;
         for c in &top.chunks {
             assert!(c.count <= 10);
-            for r in SoupReader::open(&c.path, c.count)? {
+            segments += c.run.segments.len();
+            for r in SoupReader::open(&c.run, false, disk.clone()) {
                 let r = r?;
                 let b = Bounds::of_points(&r.triangle.positions);
                 assert!(b.min[0] <= c.cell.max[0] && b.max[0] >= c.cell.min[0]);
@@ -337,30 +378,54 @@ mod tests {
         expected.sort_unstable();
         assert_eq!(primaries, expected);
         assert!(copies > 0);
-        // Only the chunk files are left.
-        let files = std::fs::read_dir(dir.path())
-            .map_err(|e| OocError::spill(dir.path(), e))?
-            .count();
-        assert_eq!(files, top.chunks.len());
+        // Only the chunks' segments are left, and they are what the disk holds.
+        assert_eq!(files_in(dir.path())?, segments);
+        let left: u64 = top.chunks.iter().map(|c| c.run.bytes()).sum();
+        assert_eq!(disk.spill_bytes(), left);
+        // Each pass freed its input as it went: the disk never held much more than one copy
+        // of the data (the copies, and a segment per run being written or read).
+        let most = (input.len() + copies) as u64 * 37 + 3 * 3 * 37;
+        assert!(disk.peak() <= most, "{} > {most}", disk.peak());
         Ok(())
     }
 
     #[test]
     fn a_cell_every_triangle_crosses_stays_one_oversized_chunk() -> Result<(), OocError> {
         let dir = tempfile::tempdir().map_err(|e| OocError::spill(Path::new("."), e))?;
-        let mut w = SoupWriter::create(&dir.path().join("all.soup"))?;
-        for _ in 0..20 {
-            w.push(&tri(0.0, 10.0))?;
-        }
-        let (path, n) = w.finish()?;
+        // Every triangle spans the cell; every other one has its centroid on the right.
+        let mut input: Vec<SoupTriangle> = (0..20)
+            .map(|k| match k % 2 {
+                0 => tri(0.0, 10.0),
+                _ => SoupTriangle {
+                    triangle: InputTriangle::new([
+                        [10.0, 0.0, 0.0],
+                        [0.0, 0.0, 0.0],
+                        [10.0, 1.0, 0.0],
+                    ]),
+                    primary: true,
+                },
+            })
+            .collect();
+        input[3].primary = false;
+        let (run, disk) = spill(dir.path(), &input)?;
         let cell = Bounds {
             min: [0.0; 3],
             max: [10.0, 1.0, 0.0],
         };
-        let top = split(&path, n, cell, 4, dir.path(), None, &mut NoProgress)?;
+        let to = SpillTo {
+            dir: dir.path(),
+            disk: &disk,
+        };
+        let top = split(run, cell, 4, &to, None, &mut NoProgress)?;
         assert_eq!(top.chunks.len(), 1);
         assert_eq!(top.oversized, vec![0]);
         assert_eq!(top.nodes, vec![TopNode::Chunk(0)]);
+        // The pass consumed the input; the chunk's run, merged from the halves, is the input.
+        let run = &top.chunks[0].run;
+        let back: Vec<SoupTriangle> =
+            SoupReader::open(run, true, disk.clone()).collect::<Result<_, _>>()?;
+        assert_eq!(back, input);
+        assert_eq!((files_in(dir.path())?, disk.spill_bytes()), (0, 0));
         Ok(())
     }
 }

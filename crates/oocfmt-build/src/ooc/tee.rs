@@ -148,8 +148,7 @@ mod tests {
             }
             sink.push(t, &at)?;
         }
-        let mut soup = finish_soup(sink)?;
-        soup.load_mesh()
+        finish_soup(sink)?.into_mesh()
     }
 
     #[test]
