@@ -7,12 +7,14 @@ use std::time::Instant;
 
 use oocfmt::{BlockKind, ReadOptions, Reader, WriteSummary};
 
+use crate::interrupt::{self, Interrupt, WatchedProgress, WatchedSink};
 use crate::kdtree::{self, KdBuildOptions, KdError};
 use crate::layout::{build_blocks, write_blocks, LayoutError, LayoutOptions};
 use crate::ooc::soup::{finish_soup, soup_sink, Soup};
 use crate::ooc::{self, OocError};
 use crate::progress::Progress;
 use crate::report::{peak_memory, BlockStats, ConvertReport, PhaseTime};
+use crate::spill_dir::{self, SpillDir};
 use oocfmt_meshio::import::{self, ImportError, Recentre, TriangleSink};
 
 /// Bytes of memory the in-core build needs per input triangle, for the worst scene measured:
@@ -21,6 +23,9 @@ use oocfmt_meshio::import::{self, ImportError, Recentre, TriangleSink};
 /// thin overlapping parts are referenced by many leaves. A scene over `--mem-limit` at this
 /// rate is built out of core, in chunks of at most `--mem-limit` / this many triangles.
 pub const BYTES_PER_TRIANGLE_IN_CORE: u64 = 1152;
+
+/// The input name that stands for standard input.
+pub const STDIN: &str = "-";
 
 /// The smallest `--mem-limit` the CLI accepts: the process itself, the importers' vertex
 /// arrays and a useful chunk need about this much.
@@ -45,6 +50,14 @@ pub struct ConvertOptions {
     pub gltf: import::gltf::GltfOptions,
     /// The scene origin positions are stored relative to.
     pub recentre: Recentre,
+    /// The folder spill files go to (`--tmp-dir`); `None`: next to the output.
+    pub tmp_dir: Option<PathBuf>,
+    /// The format of every input (`--format`); `None`: each file's extension tells. Standard
+    /// input ([`STDIN`]) has no extension, so it needs one.
+    pub format: Option<InputFormat>,
+    /// Asked, the build stops at its next check and removes what it made
+    /// ([`ConvertError::Interrupted`]).
+    pub interrupt: Interrupt,
 }
 
 impl Default for ConvertOptions {
@@ -58,6 +71,9 @@ impl Default for ConvertOptions {
             obj: Default::default(),
             gltf: Default::default(),
             recentre: Recentre::default(),
+            tmp_dir: None,
+            format: None,
+            interrupt: Interrupt::default(),
         }
     }
 }
@@ -84,14 +100,45 @@ pub enum ConvertError {
     /// input's path.
     #[error("{0}: unknown input format (expected .obj, .gltf, .glb, .stl or .ply)")]
     UnknownFormat(String),
-    /// The temporary folder for spill files could not be made beside the output.
-    #[error("cannot make a folder for spill files next to {path}: {source}")]
+    /// The temporary folder for spill files could not be made (beside the output, or in
+    /// `--tmp-dir`).
+    #[error("cannot make a folder for spill files in {path}: {source}")]
     SpillDir {
-        /// The output file the folder was to sit beside.
+        /// The folder it was to be made in.
         path: String,
         /// The I/O error creating it.
         source: std::io::Error,
     },
+    /// A stop was requested ([`ConvertOptions::interrupt`]); the spill folder and the
+    /// temporary output were removed, an existing output left as it was.
+    #[error(
+        "interrupted: removed {} of spill files; {output} was not written",
+        spill_dir::mib(*spill_bytes)
+    )]
+    Interrupted {
+        /// The output, as its path displays.
+        output: String,
+        /// The bytes the removed spill files took.
+        spill_bytes: u64,
+    },
+    /// Standard input is an input, with no [`ConvertOptions::format`] to say what it holds.
+    #[error("standard input (`-`) needs `--format obj|ply|stl`: no file name tells its format")]
+    StdinFormat,
+    /// Standard input is an input and the format is glTF, which is not read from a stream.
+    #[error(
+        "glTF cannot be read from standard input: its buffers are other files or need random \
+         access; save it to a file first (standard input takes obj, ply or stl)"
+    )]
+    StdinGltf,
+    /// Standard input is named more than once.
+    #[error("standard input (`-`) can be an input only once")]
+    StdinTwice,
+    /// Standard input with `--recentre auto`, which reads every input twice.
+    #[error(
+        "`--recentre auto` reads the inputs twice, and standard input can be read only once: \
+         pass `--recentre none` or `--recentre X,Y,Z` (a point near the model)"
+    )]
+    StdinRecentre,
 }
 
 /// Input formats, by file extension.
@@ -137,9 +184,11 @@ impl Phases {
     }
 }
 
-/// Imports `inputs` into one scene and writes the container `output`. A failure leaves no file
-/// under `output` and never touches an existing one (the writer renames a finished file into
-/// place).
+/// Imports `inputs` into one scene and writes the container `output`; an input [`STDIN`]
+/// (`-`) is read from standard input. A failure or an interruption leaves no file under
+/// `output` and never touches an existing one (the writer renames a finished file into
+/// place), and removes the spill folder. Spill folders of builds that no longer run, found
+/// where this one's goes, are removed first and reported through [`Progress::warn`].
 pub fn convert(
     inputs: &[PathBuf],
     output: &Path,
@@ -147,6 +196,102 @@ pub fn convert(
     progress: &mut dyn Progress,
 ) -> Result<ConvertReport, ConvertError> {
     let start = Instant::now();
+    check_stdin(inputs, opts)?;
+    // Before any work: refuse a conversion the disk cannot hold (skipped for an input of
+    // unknown size).
+    let output_dir = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let estimate = ooc::space::Estimate::of(inputs);
+    // Spill files live next to the output (the same disk, and room for a model's worth)
+    // unless `--tmp-dir` puts them elsewhere.
+    let parent = opts.tmp_dir.as_deref().unwrap_or(output_dir);
+    if let Some(e) = &estimate {
+        e.check(parent, output_dir).map_err(OocError::from)?;
+    }
+    for stale in spill_dir::clear_stale(parent) {
+        progress.warn(&stale.to_string());
+    }
+    let spill = SpillDir::create(parent).map_err(|source| ConvertError::SpillDir {
+        path: parent.display().to_string(),
+        source,
+    })?;
+    let mut watched = WatchedProgress {
+        inner: progress,
+        interrupt: &opts.interrupt,
+    };
+    let run = Run {
+        inputs,
+        output,
+        opts,
+        spill: spill.path(),
+        estimate,
+    };
+    match interrupt::catch(|| run_convert(run, start, &mut watched)) {
+        Some(Ok(report)) => Ok(report),
+        Some(Err(e)) if !e.is_interruption() => Err(e),
+        _ => Err(ConvertError::Interrupted {
+            output: output.display().to_string(),
+            spill_bytes: spill.remove(),
+        }),
+    }
+}
+
+/// Refuses what standard input cannot do: be read twice, or without a format, or as glTF.
+fn check_stdin(inputs: &[PathBuf], opts: &ConvertOptions) -> Result<(), ConvertError> {
+    match inputs.iter().filter(|p| is_stdin(p)).count() {
+        0 => return Ok(()),
+        1 => {}
+        _ => return Err(ConvertError::StdinTwice),
+    }
+    match opts.format {
+        None => Err(ConvertError::StdinFormat),
+        Some(InputFormat::Gltf) => Err(ConvertError::StdinGltf),
+        Some(_) if opts.recentre.needs_scan() => Err(ConvertError::StdinRecentre),
+        Some(_) => Ok(()),
+    }
+}
+
+/// Whether the input `path` stands for standard input.
+fn is_stdin(path: &Path) -> bool {
+    path.as_os_str() == STDIN
+}
+
+impl ConvertError {
+    /// Whether this is a stop on request, however deep it was raised.
+    fn is_interruption(&self) -> bool {
+        matches!(
+            self,
+            ConvertError::Interrupted { .. }
+                | ConvertError::Import(ImportError::Interrupted { .. })
+                | ConvertError::OutOfCore(OocError::Import(ImportError::Interrupted { .. }))
+        )
+    }
+}
+
+/// One conversion's inputs, output and settings, with its spill folder made.
+struct Run<'a> {
+    inputs: &'a [PathBuf],
+    output: &'a Path,
+    opts: &'a ConvertOptions,
+    spill: &'a Path,
+    estimate: Option<ooc::space::Estimate>,
+}
+
+/// Imports, builds and writes, then describes what was written.
+fn run_convert(
+    run: Run<'_>,
+    start: Instant,
+    progress: &mut dyn Progress,
+) -> Result<ConvertReport, ConvertError> {
+    let Run {
+        inputs,
+        output,
+        opts,
+        spill,
+        estimate,
+    } = run;
     let mut phases = Phases {
         list: Vec::new(),
         at: start,
@@ -156,41 +301,27 @@ pub fn convert(
     if scan {
         progress.phase("bounds", None);
     }
-    let origin = opts
-        .recentre
-        .origin(|sink| inputs.iter().try_for_each(|p| import_one(p, sink, opts)))?;
+    let origin = opts.recentre.origin(|sink| {
+        let mut sink = WatchedSink::new(sink, &opts.interrupt);
+        inputs
+            .iter()
+            .try_for_each(|p| import_one(p, &mut sink, opts))
+    })?;
     if scan {
         progress.finish_phase();
         phases.done("bounds");
     }
-    // Spill files live next to the output: the same disk, and room for a model's worth.
-    let parent = match output.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let spill = tempfile::Builder::new()
-        .prefix(".oocfmt-spill-")
-        .tempdir_in(parent)
-        .map_err(|source| ConvertError::SpillDir {
-            path: output.display().to_string(),
-            source,
-        })?;
     let chunk_triangles = opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE;
-    let soup = import_soup(
-        inputs,
-        opts,
-        spill.path(),
-        chunk_triangles,
-        origin,
-        progress,
-    )?;
+    let soup = import_soup(inputs, opts, spill, chunk_triangles, origin, progress)?;
     phases.done("import");
+    let disk = soup.disk.clone();
+    let spill_bytes_per_triangle = soup.bytes_per_triangle();
     let mut import_report = soup.report.clone();
     if let Some(w) = precision_warning(&import_report, &soup.bounds) {
         import_report.warnings.push(w);
     }
     let mut layout = opts.layout.clone();
-    layout.sources = inputs.iter().map(|p| p.display().to_string()).collect();
+    layout.sources = inputs.iter().map(|p| source_name(p)).collect();
     layout.origin = origin;
     layout.params.extend(opts.recentre.params(origin));
 
@@ -204,13 +335,12 @@ pub fn convert(
             &opts.kd,
             &layout,
             chunk_triangles,
-            spill.path(),
+            spill,
             progress,
         )?;
         phases.done("out-of-core build");
         (written, Some(stats))
     };
-    drop(spill);
 
     let mut report = describe(output, written.identity)?;
     report.import = import_report;
@@ -220,7 +350,19 @@ pub fn convert(
     report.triangles_per_second = report.import.triangles_in as f64 / report.seconds.max(1e-9);
     report.peak_memory_bytes = peak_memory();
     report.mem_limit_bytes = opts.mem_limit;
+    // The finished output outlives the spill files.
+    report.peak_disk_bytes = disk.peak().max(report.file_bytes);
+    report.spill_bytes_per_triangle = spill_bytes_per_triangle;
+    report.disk_estimate_bytes = estimate.map(|e| e.peak_bytes());
     Ok(report)
+}
+
+/// How `path` is named among the container's sources.
+fn source_name(path: &Path) -> String {
+    match is_stdin(path) {
+        true => import::STDIN_NAME.to_string(),
+        false => path.display().to_string(),
+    }
 }
 
 /// Imports `inputs` into a spill file in `dir`, positions relative to `origin`. A scene of at
@@ -239,7 +381,11 @@ fn import_soup(
         .with_file_parts(inputs.len() > 1);
     progress.phase("import", Some(inputs.len() as u64));
     for (i, path) in inputs.iter().enumerate() {
-        import_one(path, &mut sink, opts)?;
+        import_one(
+            path,
+            &mut WatchedSink::new(&mut sink, &opts.interrupt),
+            opts,
+        )?;
         progress.advance(i as u64 + 1);
     }
     progress.finish_phase();
@@ -249,15 +395,14 @@ fn import_soup(
 /// Builds a scene that fits in memory: its kd-tree, then its LOD data and blocks, then the
 /// file.
 fn build_in_core(
-    mut soup: Soup,
+    soup: Soup,
     output: &Path,
     kd: &KdBuildOptions,
     layout: &LayoutOptions,
     phases: &mut Phases,
     progress: &mut dyn Progress,
 ) -> Result<WriteSummary, ConvertError> {
-    let mesh = soup.load_mesh()?;
-    std::fs::remove_file(&soup.path).map_err(|e| OocError::spill(&soup.path, e))?;
+    let mesh = soup.into_mesh()?;
     phases.done("load");
     progress.phase("kd-tree", None);
     let tree = kdtree::build(&mesh, kd)?;
@@ -303,18 +448,49 @@ fn precision_warning(
     })
 }
 
+/// Imports the input `path` (a file, or standard input as [`STDIN`]) into `sink`, in
+/// [`ConvertOptions::format`] or the format its extension names.
 fn import_one(
     path: &Path,
     sink: &mut dyn TriangleSink,
     opts: &ConvertOptions,
 ) -> Result<(), ConvertError> {
-    match InputFormat::of(path) {
+    let format = opts.format.or_else(|| InputFormat::of(path));
+    if is_stdin(path) {
+        return import_stdin(format, sink, opts);
+    }
+    match format {
         Some(InputFormat::Obj) => import::obj::import(path, sink, &opts.obj)?,
         Some(InputFormat::Gltf) => import::gltf::import(path, sink, &opts.gltf)?,
         // Their options only bound what a file can make the importer hold: the defaults.
         Some(InputFormat::Stl) => import::stl::import(path, sink, &Default::default())?,
         Some(InputFormat::Ply) => import::ply::import(path, sink, &Default::default())?,
         None => return Err(ConvertError::UnknownFormat(path.display().to_string())),
+    }
+    Ok(())
+}
+
+/// Imports standard input, in `format`, into `sink`: read once, front to back. OBJ material
+/// libraries are looked up in the current folder.
+fn import_stdin(
+    format: Option<InputFormat>,
+    sink: &mut dyn TriangleSink,
+    opts: &ConvertOptions,
+) -> Result<(), ConvertError> {
+    let input = std::io::BufReader::with_capacity(1 << 16, std::io::stdin());
+    let name = import::STDIN_NAME;
+    match format {
+        Some(InputFormat::Obj) => {
+            import::obj::import_from(input, name, Path::new("."), sink, &opts.obj)?
+        }
+        Some(InputFormat::Stl) => {
+            import::stl::import_stream(input, name, sink, &Default::default())?
+        }
+        Some(InputFormat::Ply) => {
+            import::ply::import_stream(input, name, sink, &Default::default())?
+        }
+        Some(InputFormat::Gltf) => return Err(ConvertError::StdinGltf),
+        None => return Err(ConvertError::StdinFormat),
     }
     Ok(())
 }

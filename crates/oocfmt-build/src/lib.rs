@@ -27,6 +27,7 @@
 #![deny(missing_docs)]
 
 pub mod convert;
+pub mod interrupt;
 pub mod kdtree;
 pub mod layout;
 pub mod lod;
@@ -34,6 +35,8 @@ pub mod ooc;
 pub mod progress;
 pub mod raycast;
 pub mod report;
+mod spill_dir;
 
 pub use convert::{convert, ConvertError, ConvertOptions};
+pub use interrupt::Interrupt;
 pub use report::ConvertReport;

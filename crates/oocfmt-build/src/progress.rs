@@ -9,6 +9,9 @@ pub trait Progress {
     fn advance(&mut self, done: u64);
     /// The current phase is over.
     fn finish_phase(&mut self);
+    /// Something the user should know that does not stop the work (a stale spill folder
+    /// removed, say), as soon as it happens rather than in the final report.
+    fn warn(&mut self, _message: &str) {}
 }
 
 /// Ignores everything.

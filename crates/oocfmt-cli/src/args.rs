@@ -2,10 +2,13 @@
 //! choices as clap `ValueEnum`s (each mapped onto the library's own type, which knows no
 //! clap), the view flags of `render` and `curve`, and `--threads`.
 
+use std::path::Path;
+use std::sync::Arc;
+
 use clap::ValueEnum;
 
 use oocfmt::records::LodKinds;
-use oocfmt::Codec;
+use oocfmt::{Codec, Io, ReadOptions, Reader};
 use oocfmt_trace::blocks::LodKind;
 use oocfmt_trace::cache::{Eviction, FetchOrder};
 use oocfmt_trace::session::CacheKind;
@@ -29,6 +32,75 @@ impl From<CacheArg> for CacheKind {
             CacheArg::Mmap => CacheKind::Mmap,
         }
     }
+}
+
+/// `--io`: how the async and blocking caches read blocks from the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum IoArg {
+    Buffered,
+    Direct,
+}
+
+impl From<IoArg> for Io {
+    fn from(i: IoArg) -> Io {
+        match i {
+            IoArg::Buffered => Io::Buffered,
+            IoArg::Direct => Io::Direct,
+        }
+    }
+}
+
+/// The container at `model` read as `--io` asks, stopping on `lod` (None: the file's default).
+pub fn open_scene(model: &Path, lod: Option<LodKind>, io: IoArg) -> Result<Scene, CliError> {
+    let scene = Scene::from_reader(Reader::open_with(model, ReadOptions::default(), io.into())?);
+    Ok(match lod {
+        Some(l) => scene.with_lod(l)?,
+        None => scene,
+    })
+}
+
+/// The scene a cache of `kind` renders ([`open_scene`]); None for the mmap cache, which maps
+/// the file itself, through the page cache: with `--io direct` a usage error.
+pub fn scene_for(
+    model: &Path,
+    kind: CacheKind,
+    lod: Option<LodKind>,
+    io: IoArg,
+) -> Result<Option<Arc<Scene>>, CliError> {
+    check_io(kind, io)?;
+    if kind == CacheKind::Mmap {
+        return Ok(None);
+    }
+    Ok(Some(Arc::new(open_scene(model, lod, io)?)))
+}
+
+/// With `--io direct`, a line saying what is in effect: `O_DIRECT`, or the fallback where the
+/// file system refused it.
+pub fn io_note(io: IoArg, scene: &Scene) -> Option<String> {
+    if io == IoArg::Buffered {
+        return None;
+    }
+    Some(match scene.reader().io_mode() {
+        oocfmt::IoMode::Direct => "reads: direct (O_DIRECT, past the page cache)".to_string(),
+        oocfmt::IoMode::DontNeed => "reads: dontneed (the file system refused O_DIRECT: buffered \
+             reads, each dropped from the page cache after it)"
+            .to_string(),
+        oocfmt::IoMode::Buffered => {
+            "reads: buffered (direct reads are not available on this system)".to_string()
+        }
+    })
+}
+
+/// Refuses `--io direct` with the mmap cache, whose map is the page cache.
+pub fn check_io(kind: CacheKind, io: IoArg) -> Result<(), CliError> {
+    if kind == CacheKind::Mmap && io == IoArg::Direct {
+        return Err(CliError::Usage(
+            "--io direct reads past the page cache, and --cache mmap reads through it (the \
+             operating system pages the map in): use --io direct with --cache async or blocking"
+                .into(),
+        ));
+    }
+    Ok(())
 }
 
 /// `--lod` of `render` and `curve`: the LOD representation rays stop on.
@@ -341,5 +413,15 @@ mod tests {
         for arg in [LodArg::Voxel, LodArg::Rlod] {
             assert_eq!(name(arg), LodKind::from(arg).name());
         }
+        assert_eq!(name(IoArg::Direct), "direct");
+        assert_eq!(Io::from(IoArg::Direct), Io::Direct);
+    }
+
+    #[test]
+    fn direct_io_is_refused_with_the_mmap_cache_only() {
+        assert!(check_io(CacheKind::Mmap, IoArg::Direct).is_err());
+        assert!(check_io(CacheKind::Mmap, IoArg::Buffered).is_ok());
+        assert!(check_io(CacheKind::Async, IoArg::Direct).is_ok());
+        assert!(check_io(CacheKind::Blocking, IoArg::Direct).is_ok());
     }
 }

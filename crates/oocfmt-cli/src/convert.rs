@@ -1,13 +1,18 @@
-//! `oocfmt convert`: OBJ and glTF files into one container.
+//! `oocfmt convert`: OBJ, glTF, STL and PLY files (or standard input) into one container.
+//! Ctrl-C and SIGTERM stop the build at its next check, which then removes its spill folder
+//! and temporary output; a second one ends the process at once.
 
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
 
 use oocfmt::records::LodKinds;
 use oocfmt::{Codec, WriteOptions};
-use oocfmt_build::convert::{convert, ConvertOptions, MIN_MEM_LIMIT};
+use oocfmt_build::convert::{convert, ConvertError, ConvertOptions, InputFormat, MIN_MEM_LIMIT};
 use oocfmt_build::kdtree::KdBuildOptions;
 use oocfmt_build::layout::LayoutOptions;
 use oocfmt_build::report::{total_memory, ConvertReport};
+use oocfmt_build::Interrupt;
 use oocfmt_meshio::import::gltf::GltfOptions;
 use oocfmt_meshio::import::obj::ObjOptions;
 use oocfmt_meshio::import::{Recentre, Skipped};
@@ -19,9 +24,14 @@ use crate::progress::Phases;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Input files (.obj, .gltf, .glb, .stl, .ply); several become one scene
+    /// Input files (.obj, .gltf, .glb, .stl, .ply); several become one scene. `-` reads
+    /// standard input, which needs --format
     #[arg(required = true)]
     pub inputs: Vec<PathBuf>,
+    /// The inputs' format, whatever their names (standard input has none): obj, ply, stl or
+    /// gltf (not from standard input)
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
     /// The container to write
     #[arg(short, long)]
     pub output: PathBuf,
@@ -53,8 +63,9 @@ pub struct Args {
     #[arg(long, value_parser = parse_mem_limit)]
     pub mem_limit: Option<u64>,
     /// Store positions relative to an origin: none (positions exactly as read), auto (near
-    /// the centre of the input's bounds; one more pass over the input) or X,Y,Z. For models
-    /// far from zero, where f32 positions would lose precision; the report gives the error
+    /// the centre of the input's bounds; one more pass over the input, so not with `-`) or
+    /// X,Y,Z. For models far from zero, where f32 positions would lose precision; the report
+    /// gives the error
     #[arg(
         long,
         default_value = "none",
@@ -68,12 +79,36 @@ pub struct Args {
     /// Also write the report as JSON to this file
     #[arg(long)]
     pub report_json: Option<PathBuf>,
+    /// Folder for the spill files of the import and the out-of-core build (default: next to
+    /// the output). They take about 37 bytes a triangle, more with normals or colours
+    #[arg(long, value_name = "DIR")]
+    pub tmp_dir: Option<PathBuf>,
     /// Worker threads (default: all cores)
     #[arg(long)]
     pub threads: Option<usize>,
     /// No progress bars
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// `--format`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum FormatArg {
+    Obj,
+    Ply,
+    Stl,
+    Gltf,
+}
+
+impl From<FormatArg> for InputFormat {
+    fn from(f: FormatArg) -> InputFormat {
+        match f {
+            FormatArg::Obj => InputFormat::Obj,
+            FormatArg::Ply => InputFormat::Ply,
+            FormatArg::Stl => InputFormat::Stl,
+            FormatArg::Gltf => InputFormat::Gltf,
+        }
+    }
 }
 
 /// A `--mem-limit`: a size of at least [`MIN_MEM_LIMIT`].
@@ -120,9 +155,27 @@ pub fn run(a: &Args) -> CliResult {
             ..GltfOptions::default()
         },
         recentre: a.recentre,
+        tmp_dir: a.tmp_dir.clone(),
+        format: a.format.map(InputFormat::from),
+        interrupt: Interrupt::new(),
     };
+    let signal = on_signals(&opts.interrupt)?;
     let mut progress = Phases::new(a.quiet);
-    let report = convert(&a.inputs, &a.output, &opts, &mut progress)?;
+    let report = match convert(&a.inputs, &a.output, &opts, &mut progress) {
+        Ok(report) => report,
+        Err(e @ ConvertError::Interrupted { .. }) => {
+            use oocfmt_build::progress::Progress;
+            progress.finish_phase();
+            return Err(match u8::try_from(signal.load(Ordering::Relaxed)) {
+                Ok(n @ 1..=127) => CliError::Interrupted {
+                    code: 128 + n,
+                    source: e,
+                },
+                _ => e.into(),
+            });
+        }
+        Err(e) => return Err(e.into()),
+    };
     if let Some(path) = &a.report_json {
         std::fs::write(path, to_json(&report)?).map_err(|e| CliError::Io {
             path: path.display().to_string(),
@@ -131,6 +184,27 @@ pub fn run(a: &Args) -> CliResult {
     }
     out!("{}", render(&report))?;
     Ok(0)
+}
+
+/// Makes SIGINT and SIGTERM request `interrupt` (the build then stops and cleans up), and a
+/// second one end the process at once with 128 + its number. Returns where the number of the
+/// last signal received is kept (0: none).
+fn on_signals(interrupt: &Interrupt) -> Result<Arc<AtomicUsize>, CliError> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    use signal_hook::flag;
+    let received = Arc::new(AtomicUsize::new(0));
+    let io = |source| CliError::Io {
+        path: "signal handler".into(),
+        source,
+    };
+    for signal in [SIGINT, SIGTERM] {
+        // In this order: the second signal finds the flag the first one set.
+        flag::register_conditional_shutdown(signal, 128 + signal, Arc::clone(interrupt.flag()))
+            .map_err(io)?;
+        flag::register_usize(signal, Arc::clone(&received), signal as usize).map_err(io)?;
+        flag::register(signal, Arc::clone(interrupt.flag())).map_err(io)?;
+    }
+    Ok(received)
 }
 
 fn render(r: &ConvertReport) -> String {
@@ -219,5 +293,15 @@ fn render(r: &ConvertReport) -> String {
             r.mem_limit_bytes as f64 / 1048576.0
         );
     }
+    let estimate = match r.disk_estimate_bytes {
+        Some(e) => format!("estimated {:.1} MiB", e as f64 / 1048576.0),
+        None => "no estimate: an input's size was unknown".to_string(),
+    };
+    let _ = writeln!(
+        o,
+        "disk       peak {:.1} MiB ({estimate}), spill {:.1} bytes/triangle",
+        r.peak_disk_bytes as f64 / 1048576.0,
+        r.spill_bytes_per_triangle
+    );
     o
 }

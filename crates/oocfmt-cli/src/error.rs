@@ -10,6 +10,11 @@
 //! - [`EXIT_INTERNAL`] (3): a bug in oocfmt: a report that cannot be written as JSON, an
 //!   invariant of the builder that broke, images that should match in size and do not.
 //!
+//! - 128 + the signal's number: `convert` stopped by a signal ([`CliError::Interrupted`]):
+//!   130 for SIGINT (Ctrl-C), 143 for SIGTERM, as a shell reports a process the signal ended;
+//! - [`EXIT_BROKEN_PIPE`] (141, 128 + SIGPIPE): `gen -o -` found standard output closed
+//!   before the model was written.
+//!
 //! 0 is success; `verify` also exits 1 for a file it finds invalid.
 
 use oocfmt_build::convert::ConvertError;
@@ -28,6 +33,10 @@ pub const EXIT_INVALID: u8 = 1;
 pub const EXIT_USAGE: u8 = 2;
 /// A bug in oocfmt.
 pub const EXIT_INTERNAL: u8 = 3;
+/// Interrupted by SIGINT (Ctrl-C): 128 + 2.
+pub const EXIT_SIGINT: u8 = 130;
+/// The reader of standard output went away: 128 + SIGPIPE (13).
+pub const EXIT_BROKEN_PIPE: u8 = 141;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CliError {
@@ -53,6 +62,9 @@ pub enum CliError {
     Compare(#[from] SizeMismatch),
     #[error("JSON output failed: {0}")]
     Json(#[from] serde_json::Error),
+    /// `convert` stopped by a signal; `code` is 128 + its number.
+    #[error("{source}")]
+    Interrupted { code: u8, source: ConvertError },
 }
 
 impl CliError {
@@ -82,11 +94,18 @@ impl CliError {
             )
             | C::Convert(
                 ConvertError::UnknownFormat(_)
+                | ConvertError::StdinFormat
+                | ConvertError::StdinGltf
+                | ConvertError::StdinTwice
+                | ConvertError::StdinRecentre
                 | ConvertError::SpillDir { .. }
                 | ConvertError::Import(ImportError::Io { .. })
                 | ConvertError::OutOfCore(
                     OocError::Spill { .. }
+                    | OocError::SpillWrite { .. }
                     | OocError::SpillLength { .. }
+                    | OocError::SpillCorrupt { .. }
+                    | OocError::NoSpace(_)
                     | OocError::Import(ImportError::Io { .. }),
                 ),
             )
@@ -120,6 +139,9 @@ impl CliError {
                 | ExportError::Changed { .. },
             ) => EXIT_INVALID,
             C::Compare(_) | C::Json(_) => EXIT_INTERNAL,
+            C::Interrupted { code, .. } => *code,
+            // Stopped on request, with no signal to tell which.
+            C::Convert(ConvertError::Interrupted { .. }) => EXIT_SIGINT,
         }
     }
 }
@@ -179,6 +201,20 @@ mod tests {
             CliError::Convert(ConvertError::Tree(KdError::TooManyNodes)).exit_code(),
             EXIT_INVALID
         );
+        assert_eq!(
+            CliError::Convert(ConvertError::StdinFormat).exit_code(),
+            EXIT_USAGE
+        );
+        let stopped = || ConvertError::Interrupted {
+            output: "o.oocf".into(),
+            spill_bytes: 0,
+        };
+        assert_eq!(CliError::Convert(stopped()).exit_code(), EXIT_SIGINT);
+        let term = CliError::Interrupted {
+            code: 143,
+            source: stopped(),
+        };
+        assert_eq!(term.exit_code(), 143);
         assert_eq!(
             CliError::Gen(GenError::Option("x".into())).exit_code(),
             EXIT_USAGE

@@ -1,12 +1,15 @@
-//! `oocfmt gen`: streaming scene generators for tests and benchmarks.
+//! `oocfmt gen`: streaming scene generators for tests and benchmarks. `-o -` writes the OBJ
+//! to standard output (for `oocfmt convert -`), the summary then going to stderr; a reader
+//! that goes away early ends it quietly with [`EXIT_BROKEN_PIPE`].
 
-use std::path::PathBuf;
+use std::io::ErrorKind;
+use std::path::{Path, PathBuf};
 
 use oocfmt_scenes::cad::{self, CadOptions};
 use oocfmt_scenes::mandelbulb::{self, MandelbulbOptions};
-use oocfmt_scenes::GenReport;
+use oocfmt_scenes::{GenError, GenReport};
 
-use crate::error::{to_json, CliResult};
+use crate::error::{to_json, CliResult, EXIT_BROKEN_PIPE};
 use crate::out::outln;
 use crate::progress;
 
@@ -39,7 +42,8 @@ pub struct Common {
     /// Approximate triangle count (Mandelbulb within about 20 %, CAD exact)
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub tris: u64,
-    /// The OBJ file to write
+    /// The OBJ file to write; `-` writes to standard output (CAD: without its .mtl, so
+    /// materials get the default colour)
     #[arg(short, long)]
     pub output: PathBuf,
     /// Seed: the same seed and count give the same file
@@ -63,39 +67,71 @@ pub fn run(a: &Args) -> CliResult {
         bar.set_length(total);
         bar.set_position(done);
     };
-    let result = match &a.scene {
-        Scene::Mandelbulb(c) => mandelbulb::write_obj(
-            &c.output,
-            &MandelbulbOptions {
+    let stream = c.output == Path::new("-");
+    let result = generate(&a.scene, stream, &mut tick);
+    bar.finish_and_clear();
+    let report: GenReport = match result {
+        Err(GenError::Write(e)) if stream && e.source.kind() == ErrorKind::BrokenPipe => {
+            return Ok(EXIT_BROKEN_PIPE)
+        }
+        r => r?,
+    };
+    let summary = match c.json {
+        true => to_json(&report)?,
+        false => format!(
+            "wrote {} ({} triangles, {} vertices, {} bytes)",
+            if stream {
+                STDOUT.into()
+            } else {
+                c.output.display().to_string()
+            },
+            report.triangles,
+            report.vertices,
+            report.bytes
+        ),
+    };
+    // Standard output holds the model.
+    if stream {
+        eprintln!("{summary}");
+    } else {
+        outln!("{summary}")?;
+    }
+    Ok(0)
+}
+
+/// How standard output is named in messages.
+const STDOUT: &str = "standard output";
+
+/// Runs the generator `scene` asks for, into its file or (`stream`) standard output.
+fn generate(
+    scene: &Scene,
+    stream: bool,
+    tick: &mut dyn FnMut(u64, u64),
+) -> Result<GenReport, GenError> {
+    let out = || Box::new(std::io::stdout()) as Box<dyn std::io::Write>;
+    match scene {
+        Scene::Mandelbulb(c) => {
+            let opts = MandelbulbOptions {
                 triangles: c.tris,
                 seed: c.seed,
                 ..MandelbulbOptions::default()
-            },
-            &mut tick,
-        ),
-        Scene::Cad(a) => cad::write_obj(
-            &a.common.output,
-            &CadOptions {
+            };
+            match stream {
+                true => mandelbulb::write_obj_stream(out(), STDOUT, &opts, tick),
+                false => mandelbulb::write_obj(&c.output, &opts, tick),
+            }
+        }
+        Scene::Cad(a) => {
+            let opts = CadOptions {
                 triangles: a.common.tris,
                 seed: a.common.seed,
                 parts: a.parts,
                 ..CadOptions::default()
-            },
-            &mut tick,
-        ),
-    };
-    bar.finish_and_clear();
-    let report: GenReport = result?;
-    if c.json {
-        outln!("{}", to_json(&report)?)?;
-    } else {
-        outln!(
-            "wrote {} ({} triangles, {} vertices, {} bytes)",
-            c.output.display(),
-            report.triangles,
-            report.vertices,
-            report.bytes
-        )?;
+            };
+            match stream {
+                true => cad::write_obj_stream(out(), STDOUT, &opts, tick),
+                false => cad::write_obj(&a.common.output, &opts, tick),
+            }
+        }
     }
-    Ok(0)
 }

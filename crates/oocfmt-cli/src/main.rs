@@ -9,7 +9,9 @@
 //! - 2: the command could not run: bad usage (an unknown flag, a bad value, a LOD kind the
 //!   file lacks, a bad camera path) or an I/O error (a missing input, an unwritable output);
 //! - 3: an internal error, a bug in oocfmt (a report that cannot be written as JSON, a broken
-//!   invariant of the builder).
+//!   invariant of the builder);
+//! - 130, 143: `convert` interrupted by SIGINT or SIGTERM (128 + the signal), cleaned up;
+//! - 141: `gen -o -` found standard output closed (128 + SIGPIPE).
 
 #![forbid(unsafe_code)]
 
@@ -41,7 +43,7 @@ use clap::{Parser, Subcommand};
     about = "Out-of-core ray tracing containers (.oocf): inspect, verify, build"
 )]
 #[command(
-    after_help = "Exit status: 0 success (verify: valid), 1 invalid input, 2 could not run (usage, I/O), 3 internal error."
+    after_help = "Exit status: 0 success (verify: valid), 1 invalid input, 2 could not run (usage, I/O), 3 internal error, 130/143 convert interrupted (SIGINT/SIGTERM), 141 gen -o - into a closed pipe."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -54,11 +56,11 @@ enum Command {
     Inspect(inspect::Args),
     /// Check a container and report every problem with a stable issue code
     Verify(verify::Args),
-    /// Convert OBJ and glTF files into one container
+    /// Convert OBJ, glTF, STL and PLY files (or standard input) into one container
     Convert(convert::Args),
     /// Write the full-detail triangles of a container back out as OBJ or PLY
     Export(export::Args),
-    /// Generate a test scene as OBJ (streaming, any size)
+    /// Generate a test scene as OBJ (streaming, any size; `-o -`: to standard output)
     Gen(gen::Args),
     /// Build a container from the built-in demo scene, then inspect and verify it
     Demo(demo::Args),

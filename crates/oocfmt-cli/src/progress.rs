@@ -66,6 +66,15 @@ impl oocfmt_build::progress::Progress for Phases {
             b.finish_and_clear();
         }
     }
+
+    /// On stderr at once (above the bar, if one is drawn), even with `--quiet`.
+    fn warn(&mut self, message: &str) {
+        let line = || eprintln!("warning    {message}");
+        match &self.bar {
+            Some(b) => b.suspend(line),
+            None => line(),
+        }
+    }
 }
 
 /// A counting bar whose total the work sets as it learns it.

@@ -1,6 +1,7 @@
 //! Streaming output for the generators and the exporter: an [`AtomicFile`] that appears under
-//! its name only when complete, and an [`ObjWriter`] on top of it that numbers vertices and
-//! normals as it writes them, so a caller never needs the whole model in memory.
+//! its name only when complete, and an [`ObjWriter`] on top of it (or of a stream, such as
+//! standard output) that numbers vertices and normals as it writes them, so a caller never
+//! needs the whole model in memory.
 //!
 //! Floats are printed with Rust's `{}` (the shortest text that parses back to the same value),
 //! so positions survive a write and re-read bit for bit.
@@ -158,10 +159,84 @@ pub struct ObjStats {
     pub bytes: u64,
 }
 
+/// Where an [`ObjWriter`] writes.
+enum Target {
+    /// A file, renamed into place when finished.
+    File(AtomicFile),
+    /// A stream (standard output), named in errors by `name`; `bytes` written so far.
+    Stream {
+        out: BufWriter<Box<dyn Write>>,
+        name: PathBuf,
+        bytes: u64,
+    },
+}
+
+impl Target {
+    fn bytes(&self) -> u64 {
+        match self {
+            Target::File(f) => f.bytes(),
+            Target::Stream { bytes, .. } => *bytes,
+        }
+    }
+
+    fn error(&self, source: io::Error) -> WriteError {
+        match self {
+            Target::File(f) => f.error(source),
+            Target::Stream { name, .. } => WriteError {
+                path: name.clone(),
+                source,
+            },
+        }
+    }
+
+    fn write_fmt(&mut self, args: std::fmt::Arguments<'_>) -> io::Result<()> {
+        match self {
+            Target::File(f) => f.write_fmt(args),
+            Target::Stream { out, bytes, .. } => {
+                let mut counted = Counted { out, bytes };
+                counted.write_fmt(args)
+            }
+        }
+    }
+
+    /// Commits the file, or flushes the stream; returns the bytes written.
+    fn finish(self) -> Result<u64, WriteError> {
+        match self {
+            Target::File(f) => f.commit(),
+            Target::Stream {
+                mut out,
+                name,
+                bytes,
+            } => out
+                .flush()
+                .map(|()| bytes)
+                .map_err(|source| WriteError { path: name, source }),
+        }
+    }
+}
+
+/// A writer that counts what goes through it.
+struct Counted<'a, W> {
+    out: &'a mut W,
+    bytes: &'a mut u64,
+}
+
+impl<W: Write> Write for Counted<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        let n = self.out.write(buf)?;
+        *self.bytes += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.out.flush()
+    }
+}
+
 /// Writes a Wavefront OBJ file line by line. Vertex and normal indices are the 1-based
 /// numbers OBJ uses, returned as each element is written.
 pub struct ObjWriter {
-    out: AtomicFile,
+    out: Target,
     stats: ObjStats,
 }
 
@@ -169,9 +244,23 @@ impl ObjWriter {
     /// Starts an OBJ file that appears at `path` only when [`ObjWriter::finish`] succeeds.
     pub fn create(path: &Path) -> Result<ObjWriter, WriteError> {
         Ok(ObjWriter {
-            out: AtomicFile::create(path)?,
+            out: Target::File(AtomicFile::create(path)?),
             stats: ObjStats::default(),
         })
+    }
+
+    /// Writes OBJ text to the stream `out` (standard output, say), buffered, named `name` in
+    /// errors. What is written reaches the reader as it goes: a failure leaves it a partial
+    /// file.
+    pub fn stream(out: Box<dyn Write>, name: &str) -> ObjWriter {
+        ObjWriter {
+            out: Target::Stream {
+                out: BufWriter::with_capacity(1 << 20, out),
+                name: PathBuf::from(name),
+                bytes: 0,
+            },
+            stats: ObjStats::default(),
+        }
     }
 
     /// What has been written so far.
@@ -263,10 +352,10 @@ impl ObjWriter {
         Ok(())
     }
 
-    /// Renames the file into place; returns what was written.
+    /// Renames the file into place (or flushes the stream); returns what was written.
     pub fn finish(self) -> Result<ObjStats, WriteError> {
         let stats = self.stats;
-        let bytes = self.out.commit()?;
+        let bytes = self.out.finish()?;
         Ok(ObjStats { bytes, ..stats })
     }
 }
@@ -358,6 +447,34 @@ mod tests {
             .count();
         assert_eq!(leftovers, 1);
         Ok(())
+    }
+
+    #[test]
+    fn a_stream_counts_its_bytes_and_names_itself_in_errors() {
+        let mut w = ObjWriter::stream(Box::new(io::sink()), "standard output");
+        let v = w.vertex([1.0f32, 2.0, 3.0]).ok();
+        assert_eq!(v, Some(1));
+        assert_eq!(
+            w.finish().ok().map(|s| s.bytes),
+            Some("v 1 2 3\n".len() as u64)
+        );
+        struct Closed;
+        impl Write for Closed {
+            fn write(&mut self, _: &[u8]) -> io::Result<usize> {
+                Err(io::ErrorKind::BrokenPipe.into())
+            }
+            fn flush(&mut self) -> io::Result<()> {
+                Err(io::ErrorKind::BrokenPipe.into())
+            }
+        }
+        let mut w = ObjWriter::stream(Box::new(Closed), "standard output");
+        let e = w
+            .comment("buffered")
+            .and_then(|()| w.finish().map(|_| ()))
+            .err();
+        let e = e.map(|e| (e.source.kind(), e.to_string()));
+        assert_eq!(e.as_ref().map(|e| e.0), Some(io::ErrorKind::BrokenPipe));
+        assert!(e.is_some_and(|e| e.1.starts_with("standard output: ")));
     }
 
     #[test]

@@ -2,6 +2,7 @@
 //! bad-input policy (drop and count, or fail under `--strict`), so every importer applies the
 //! same rules and the report adds up: triangles out = triangles in − triangles dropped.
 
+mod forward;
 pub mod gltf;
 pub mod obj;
 pub mod placement;
@@ -15,6 +16,7 @@ use std::fmt;
 use serde::Serialize;
 
 pub use crate::mesh::PartDef;
+pub use forward::STDIN_NAME;
 pub use placement::{PlacementReport, Recentre};
 pub use sink::{
     compact_materials, ChunkSchema, Intake, Intaken, MeshSink, MeshStore, Store, MAX_PARTS,
@@ -260,6 +262,12 @@ pub enum ImportError {
     Empty {
         /// How many triangles were dropped.
         dropped: u64,
+    },
+    /// The caller asked the import to stop (a sink returns it; Ctrl-C in `oocfmt convert`).
+    #[error("{at}: the import was interrupted")]
+    Interrupted {
+        /// Where the import stood.
+        at: Location,
     },
 }
 

@@ -15,6 +15,10 @@
 //! scene origin before rounding to f32 (see the parser's `coordinate` for why that is still
 //! bit-exact without an origin).
 //!
+//! Input may be a pipe ([`import_from`]): one forward pass reads it all. Material libraries
+//! are then looked up in the folder the caller names; for standard input that is the current
+//! folder, so `mtllib scene.mtl` finds the `scene.mtl` a shell user sees beside them.
+//!
 //! Objects and groups become parts: `o NAME` a top-level part, `g NAME…` a part under the
 //! current object (the names of `g a b` joined by a space, `g` alone `default`), a name met
 //! again under the same parent continuing its part (`obj/parts.rs`). A file `oocfmt export`
@@ -39,7 +43,7 @@ mod parts;
 pub(in crate::import) mod polygon;
 
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufRead, BufReader};
 use std::num::IntErrorKind;
 use std::path::{Path, PathBuf};
 use std::str::SplitWhitespace;
@@ -84,17 +88,31 @@ pub fn import(
     opts: &ObjOptions,
 ) -> Result<(), ImportError> {
     let name = path.display().to_string();
-    sink.begin_file(&name);
     let file = File::open(path).map_err(|source| ImportError::Io {
         path: name.clone(),
         source,
     })?;
     let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
     };
-    let mut lines = Lines::new(BufReader::with_capacity(1 << 16, file), opts.max_line_bytes);
-    let mut obj = Obj::new(name, dir, opts);
+    let input = BufReader::with_capacity(1 << 16, file);
+    import_from(input, &name, dir, sink, opts)
+}
+
+/// Reads OBJ text from `input` into `sink`, reporting places in it as `name`; `mtllib` names
+/// are looked up in `dir` (and may not leave it). OBJ is read in one forward pass, so `input`
+/// may be a pipe: standard input passes [`super::STDIN_NAME`] and the current folder.
+pub fn import_from<R: BufRead>(
+    input: R,
+    name: &str,
+    dir: &Path,
+    sink: &mut dyn TriangleSink,
+    opts: &ObjOptions,
+) -> Result<(), ImportError> {
+    sink.begin_file(name);
+    let mut lines = Lines::new(input, opts.max_line_bytes);
+    let mut obj = Obj::new(name.to_string(), dir.to_path_buf(), opts);
     obj.positions_only = sink.positions_only();
     loop {
         let line = lines.next_with_comment().map_err(|f| obj.line_error(f))?;
@@ -574,6 +592,30 @@ mod tests {
         assert!(maybe_f32_tie(1.0 + 2f64.powi(-24)));
         assert!(!maybe_f32_tie(1.0 + 2f64.powi(-23)));
         assert!(!maybe_f32_tie(0.1));
+    }
+
+    #[test]
+    fn a_stream_reads_in_one_pass_with_libraries_from_the_folder_given() -> Result<(), String> {
+        let dir = tempfile::tempdir().map_err(|e| e.to_string())?;
+        std::fs::write(dir.path().join("m.mtl"), "newmtl red\nKd 1 0 0\n")
+            .map_err(|e| e.to_string())?;
+        let text = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\nf 1 2 9\n";
+        let mut sink = crate::import::MeshSink::new(false);
+        import_from(
+            text.as_bytes(),
+            crate::import::STDIN_NAME,
+            dir.path(),
+            &mut sink,
+            &ObjOptions::default(),
+        )
+        .map_err(|e| e.to_string())?;
+        let (mesh, report) = sink.finish().map_err(|e| e.to_string())?;
+        assert_eq!(mesh.triangles.len(), 1);
+        let red = mesh.material_table.iter().find(|m| m.name == "red");
+        assert_eq!(red.map(|m| m.diffuse), Some([1.0, 0.0, 0.0]));
+        assert_eq!(report.files, vec!["<stdin>".to_string()]);
+        assert_eq!(report.dropped.get(&DropReason::IndexOutOfRange), Some(&1));
+        Ok(())
     }
 
     #[test]

@@ -21,11 +21,17 @@
 //! before it is reserved), faces go to the sink as they are read. Faces stored before the
 //! vertices are read in a second pass over the file. Every element count and list length is
 //! checked against the bytes left in the file before anything is reserved or skipped for it.
+//!
+//! A stream (standard input, [`import_stream`]) has no size to check against: counts are then
+//! held to the limits of [`PlyOptions`] alone, the vertex table grows as it is read instead of
+//! being reserved, and faces stored before the vertices are refused (no second pass).
 
 mod body;
 mod faces;
 mod header;
 mod scalar;
+#[cfg(test)]
+mod stream_tests;
 mod vertices;
 
 use std::io::{BufRead, Seek};
@@ -36,6 +42,7 @@ use faces::{FacePlan, Faces};
 use header::{Encoding, Header};
 use vertices::{Table, VertexPlan};
 
+use super::forward::Forward;
 use super::stl::lines::Lines;
 use super::{ImportError, Location, TriangleSink};
 
@@ -83,10 +90,36 @@ pub fn import_from<R: BufRead + Seek>(
     opts: &PlyOptions,
 ) -> Result<(), ImportError> {
     let len = super::begin_seekable(&mut input, name, sink)?;
+    read(input, name, Some(len), sink, opts)
+}
+
+/// Reads a PLY stream (standard input, a pipe: no size, no seeking) from `input` into `sink`,
+/// reporting places in it as `name`. Without a size, counts are held only to
+/// [`PlyOptions::max_vertices`] and the vertex table grows as it is read; faces stored before
+/// the vertices, which need a second pass, are refused.
+pub fn import_stream<R: BufRead>(
+    input: R,
+    name: &str,
+    sink: &mut dyn TriangleSink,
+    opts: &PlyOptions,
+) -> Result<(), ImportError> {
+    sink.begin_file(name);
+    read(Forward::new(input), name, None, sink, opts)
+}
+
+/// Reads `input` (at its start), a file of `len` bytes or a stream (`None`), into `sink`.
+fn read<R: BufRead + Seek>(
+    input: R,
+    name: &str,
+    len: Option<u64>,
+    sink: &mut dyn TriangleSink,
+    opts: &PlyOptions,
+) -> Result<(), ImportError> {
     let mut lines = Lines::new(input, opts.max_line_bytes, 0, 0);
     let mut header = header::read(&mut lines, name, opts)?;
     let start = lines.offset();
-    check_sizes(&header, len.saturating_sub(start), name, opts)?;
+    let body_bytes = len.map(|l| l.saturating_sub(start));
+    check_sizes(&header, body_bytes, name, opts)?;
     for (line, text) in std::mem::take(&mut header.bad_comments) {
         sink.warn(
             &Location::line(name, line),
@@ -94,6 +127,9 @@ pub fn import_from<R: BufRead + Seek>(
         );
     }
     let plan = Plan::new(&header, name, sink)?;
+    if len.is_none() && !sink.positions_only() {
+        plan.check_one_pass(&header, name)?;
+    }
     match header.encoding {
         Encoding::Ascii => {
             let body = Ascii::new(lines, name, len, opts.max_line_bytes);
@@ -107,21 +143,22 @@ pub fn import_from<R: BufRead + Seek>(
 }
 
 /// Refuses counts the file cannot hold: every element's records take at least
-/// [`header::Element::min_record_bytes`] each, so the sum cannot pass the bytes after the
-/// header. The vertex count is also held to [`PlyOptions::max_vertices`].
+/// [`header::Element::min_record_bytes`] each, so the sum cannot pass the `body_bytes` after
+/// the header (unknown for a stream). The vertex count is also held to
+/// [`PlyOptions::max_vertices`].
 fn check_sizes(
     header: &Header,
-    body_bytes: u64,
+    body_bytes: Option<u64>,
     file: &str,
     opts: &PlyOptions,
 ) -> Result<(), ImportError> {
     // An ASCII file's last value needs no separator.
-    let room = u128::from(body_bytes) + u128::from(header.encoding == Encoding::Ascii);
+    let slack = u128::from(header.encoding == Encoding::Ascii);
     let mut need = 0u128;
     for e in &header.elements {
         let min = e.min_record_bytes(header.encoding);
         need += u128::from(e.count) * u128::from(min);
-        if need > room {
+        if let Some(body_bytes) = body_bytes.filter(|&b| need > u128::from(b) + slack) {
             return Err(ImportError::Parse {
                 at: Location::line(file, e.line),
                 message: format!(
@@ -192,6 +229,28 @@ impl Plan {
             _ => {}
         }
         Ok(Plan { vertex, faces })
+    }
+
+    /// Refuses faces stored before the vertices: reading them takes a second pass, which a
+    /// stream cannot give.
+    fn check_one_pass(&self, header: &Header, file: &str) -> Result<(), ImportError> {
+        let first_vertex = self.vertex.as_ref().map_or(usize::MAX, |(v, _)| *v);
+        let early = self
+            .faces
+            .iter()
+            .take(first_vertex)
+            .position(Option::is_some);
+        match early.and_then(|i| header.elements.get(i)) {
+            Some(e) => Err(ImportError::Unsupported {
+                at: Location::line(file, e.line),
+                what: format!(
+                    "element `{}` comes before the vertices, which takes a second pass over the \
+                     input, and a stream can be read only once: save it to a file first",
+                    e.name
+                ),
+            }),
+            None => Ok(()),
+        }
     }
 
     /// Reads the body: vertices and the faces after them in one pass; faces stored before the

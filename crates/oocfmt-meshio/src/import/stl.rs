@@ -5,10 +5,20 @@
 //! byte 80, else it must parse as ASCII (`solid` … `endsolid`), else the error says why it is
 //! neither. Both are streamed facet by facet; nothing grows with the file.
 //!
+//! A stream (standard input, [`import_stream`]) has no size to tell by, so its first 84 bytes
+//! decide: it is ASCII when there are fewer (too short for binary) or when they start with
+//! `solid` (any case, after optional whitespace) and hold no control byte other than tab, CR
+//! and LF; else binary, read for exactly the facet count at byte 80. A binary header is padded
+//! with NUL bytes, and the count of any model under 2^29 (536 870 912) facets has a byte
+//! under 0x20, so only a binary file with a text-only header starting with `solid` and at
+//! least that many facets is taken for ASCII (and then fails saying why it is neither). Bytes
+//! after the declared facets are warned about, not read.
+//!
 //! - **Parts.** Each `solid` of an ASCII file with several becomes a part, named by its name or
 //!   `solid N` (1-based) when unnamed; a lone solid is a part only when it is named, so its name
 //!   survives. Telling whether an unnamed first solid is alone takes a quick scan ahead for
-//!   another `solid` line. Binary files have no parts.
+//!   another `solid` line; a stream cannot be scanned ahead, so there an unnamed first solid
+//!   is never a part (its facets belong to the input as a whole). Binary files have no parts.
 //! - **Normals.** Facet normals are not stored (they are face normals; the sink takes vertex
 //!   normals). Each stored normal that is finite, not zero and points against the winding's
 //!   normal (negative dot product) is counted, and one warning per file gives the count: the
@@ -32,11 +42,14 @@ mod binary;
 mod colour;
 mod facet;
 pub(in crate::import) mod lines;
+#[cfg(test)]
+mod stream_tests;
 
-use std::io::{BufRead, Seek, SeekFrom};
+use std::io::{BufRead, Cursor, Read, Seek, SeekFrom};
 use std::path::Path;
 
-use super::{ImportError, TriangleSink};
+use super::forward::Forward;
+use super::{ImportError, Location, TriangleSink};
 
 /// Bounds and choices of the STL importer.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -94,20 +107,93 @@ pub fn import_from<R: BufRead + Seek>(
             "it is too short for binary STL ({len} bytes, under the {BINARY_HEAD} of the header \
              and facet count)"
         );
-        return ascii::read(input, name, sink, opts, &note);
+        return ascii::read(input, name, sink, opts, &note, true);
     }
     input.read_exact(&mut head).map_err(io)?;
-    let (header, count) = head.split_at(80);
-    let count = u32::from_le_bytes(count.try_into().unwrap_or_default());
+    let (header, count) = split_head(&head);
     let expected = BINARY_HEAD + BINARY_FACET * u64::from(count);
     if len == expected {
-        let header: [u8; 80] = header.try_into().unwrap_or([0; 80]);
-        return binary::read(input, name, &header, count, sink, opts);
+        let short = "it changed while being read?";
+        return binary::read(input, name, &header, count, sink, opts, short);
     }
     input.seek(SeekFrom::Start(0)).map_err(io)?;
     let note = format!(
         "as binary STL its header declares {count} facets, which take 84 + 50 × {count} = \
          {expected} bytes, but the file has {len} bytes"
     );
-    ascii::read(input, name, sink, opts, &note)
+    ascii::read(input, name, sink, opts, &note, true)
+}
+
+/// Reads an STL stream (standard input, a pipe: no size, no seeking) from `input` into
+/// `sink`, reporting places in it as `name`; binary or ASCII by its first bytes (the module
+/// documentation gives the rule).
+pub fn import_stream<R: BufRead>(
+    input: R,
+    name: &str,
+    sink: &mut dyn TriangleSink,
+    opts: &StlOptions,
+) -> Result<(), ImportError> {
+    sink.begin_file(name);
+    let io = |source| ImportError::Io {
+        path: name.to_string(),
+        source,
+    };
+    let mut input = Forward::new(input);
+    let mut head = Vec::with_capacity(BINARY_HEAD as usize);
+    (&mut input)
+        .take(BINARY_HEAD)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    if let Some(note) = ascii_stream_note(&head) {
+        let whole = Forward::new(Cursor::new(head).chain(input));
+        return ascii::read(whole, name, sink, opts, &note, false);
+    }
+    let (header, count) = split_head(&head);
+    let short = "the stream ends before the facets its header declares";
+    binary::read(&mut input, name, &header, count, sink, opts, short)?;
+    if !input.at_end().map_err(io)? {
+        let end = BINARY_HEAD + BINARY_FACET * u64::from(count);
+        sink.warn(
+            &Location::item(name, format!("byte {end}")),
+            format!(
+                "the stream goes on after the {count} facets its header declares; the rest was \
+                 not read"
+            ),
+        );
+    }
+    Ok(())
+}
+
+/// The 80-byte header and the facet count of a binary STL's first 84 bytes.
+fn split_head(head: &[u8]) -> ([u8; 80], u32) {
+    let (header, count) = head.split_at(head.len().min(80));
+    (
+        header.try_into().unwrap_or([0; 80]),
+        u32::from_le_bytes(count.try_into().unwrap_or_default()),
+    )
+}
+
+/// Why a stream whose first bytes are `head` (up to 84) is read as ASCII, or `None` when it
+/// is read as binary.
+fn ascii_stream_note(head: &[u8]) -> Option<String> {
+    if head.len() < BINARY_HEAD as usize {
+        return Some(format!(
+            "it is too short for binary STL ({} bytes, under the {BINARY_HEAD} of the header and \
+             facet count)",
+            head.len()
+        ));
+    }
+    let text = head
+        .iter()
+        .all(|&b| (b >= 0x20 && b != 0x7f) || matches!(b, b'\t' | b'\r' | b'\n'));
+    let start = head.trim_ascii_start();
+    let solid = start
+        .get(..5)
+        .is_some_and(|w| w.eq_ignore_ascii_case(b"solid"))
+        && start.get(5).is_none_or(u8::is_ascii_whitespace);
+    (text && solid).then(|| {
+        "its first 84 bytes start with `solid` and are all text, which a binary header and \
+         facet count (of under 2^29 facets) never are"
+            .to_string()
+    })
 }

@@ -36,16 +36,19 @@ pub(super) trait Body {
     fn rewind(&mut self) -> Result<(), ImportError>;
     /// The end of a pass over every element: warns about what follows the last one.
     fn end(&mut self, sink: &mut dyn TriangleSink);
+    /// Whether the input's size is known, so that the counts in the header were checked
+    /// against it (false for a stream).
+    fn sized(&self) -> bool;
 }
 
 /// The file's bytes, little- or big-endian.
 pub(super) struct Binary<R> {
     input: R,
     file: String,
-    /// Where the body starts, the next byte to read, the file's length.
+    /// Where the body starts, the next byte to read, the file's length (`None`: a stream).
     start: u64,
     pos: u64,
-    len: u64,
+    len: Option<u64>,
     big_endian: bool,
     element: String,
     record: u64,
@@ -55,8 +58,15 @@ pub(super) struct Binary<R> {
 }
 
 impl<R: BufRead + Seek> Binary<R> {
-    /// The body of `file` in `input`, which stands at byte `start` of a file of `len` bytes.
-    pub(super) fn new(input: R, file: &str, start: u64, len: u64, big_endian: bool) -> Binary<R> {
+    /// The body of `file` in `input`, which stands at byte `start` of a file of `len` bytes
+    /// (`None`: a stream of unknown length).
+    pub(super) fn new(
+        input: R,
+        file: &str,
+        start: u64,
+        len: Option<u64>,
+        big_endian: bool,
+    ) -> Binary<R> {
         Binary {
             input,
             file: file.to_string(),
@@ -72,8 +82,9 @@ impl<R: BufRead + Seek> Binary<R> {
         }
     }
 
+    /// Bytes left in the file; as many as can be for a stream.
     fn left(&self) -> u64 {
-        self.len.saturating_sub(self.pos)
+        self.len.map_or(u64::MAX, |l| l.saturating_sub(self.pos))
     }
 
     fn error(&mut self, message: String) -> ImportError {
@@ -85,10 +96,13 @@ impl<R: BufRead + Seek> Binary<R> {
 
     fn read_error(&mut self, e: io::Error, property: &str) -> ImportError {
         if e.kind() == ErrorKind::UnexpectedEof {
-            let message = format!(
-                "the file ends at byte {} inside property `{property}`",
-                self.len
-            );
+            let message = match self.len {
+                Some(len) => format!("the file ends at byte {len} inside property `{property}`"),
+                None => format!(
+                    "the stream ends inside property `{property}` (after byte {})",
+                    self.pos
+                ),
+            };
             return self.error(message);
         }
         ImportError::Io {
@@ -228,12 +242,22 @@ impl<R: BufRead + Seek> Body for Binary<R> {
     }
 
     fn end(&mut self, sink: &mut dyn TriangleSink) {
-        if self.left() > 0 {
-            sink.warn(
-                &Location::item(&self.file, format!("byte {}", self.pos)),
+        let at = Location::item(&self.file, format!("byte {}", self.pos));
+        match self.len {
+            Some(_) if self.left() > 0 => sink.warn(
+                &at,
                 format!("{} bytes after the last element were ignored", self.left()),
-            );
+            ),
+            None if self.input.fill_buf().is_ok_and(|b| !b.is_empty()) => sink.warn(
+                &at,
+                "the stream goes on after the last element; the rest was not read".into(),
+            ),
+            _ => {}
         }
+    }
+
+    fn sized(&self) -> bool {
+        self.len.is_some()
     }
 }
 
@@ -241,9 +265,9 @@ impl<R: BufRead + Seek> Body for Binary<R> {
 pub(super) struct Ascii<R> {
     lines: Lines<R>,
     file: String,
-    /// The line and byte where the body starts; the file's length.
+    /// The line and byte where the body starts; the file's length (`None`: a stream).
     start: (u64, u64),
-    len: u64,
+    len: Option<u64>,
     /// Where the current line starts in the file, and how far it has been read.
     line_start: u64,
     cursor: usize,
@@ -255,8 +279,8 @@ pub(super) struct Ascii<R> {
 
 impl<R: BufRead + Seek> Ascii<R> {
     /// The body of `file`, read from `lines` (which stand at its start) in a file of `len`
-    /// bytes.
-    pub(super) fn new(lines: Lines<R>, file: &str, len: u64, max_line: usize) -> Ascii<R> {
+    /// bytes (`None`: a stream of unknown length).
+    pub(super) fn new(lines: Lines<R>, file: &str, len: Option<u64>, max_line: usize) -> Ascii<R> {
         Ascii {
             max_line,
             start: (lines.line(), lines.offset()),
@@ -283,10 +307,11 @@ impl<R: BufRead + Seek> Ascii<R> {
         }
     }
 
-    /// Bytes not read yet: the rest of the current line and of the file.
+    /// Bytes not read yet: the rest of the current line and of the file; as many as can be
+    /// for a stream.
     fn left(&self) -> u64 {
-        self.len
-            .saturating_sub(self.line_start.saturating_add(self.cursor as u64))
+        let read = self.line_start.saturating_add(self.cursor as u64);
+        self.len.map_or(u64::MAX, |l| l.saturating_sub(read))
     }
 
     /// The next word.
@@ -421,4 +446,8 @@ impl<R: BufRead + Seek> Body for Ascii<R> {
     }
 
     fn end(&mut self, _sink: &mut dyn TriangleSink) {}
+
+    fn sized(&self) -> bool {
+        self.len.is_some()
+    }
 }

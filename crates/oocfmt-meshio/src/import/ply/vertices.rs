@@ -1,7 +1,7 @@
 //! The `vertex` element: positions (`x`, `y`, `z`), normals (`nx`, `ny`, `nz`) and colours
 //! (`red`, `green`, `blue`, optional `alpha`, or their `diffuse_` names) of any scalar type;
 //! every other property is stepped over. The table is the one thing the importer holds, and
-//! its length was checked against the file's size before it is reserved.
+//! its length was checked against the file's size before it is reserved (a stream's grows).
 
 use super::body::Body;
 use super::header::{Element, Kind};
@@ -93,8 +93,14 @@ pub(super) fn read<B: Body>(
     sink: &mut dyn TriangleSink,
     keep: bool,
 ) -> Result<Table, ImportError> {
-    // The count was checked against the file's size and the vertex limit.
+    // The count was checked against the vertex limit, and against the file's size where it
+    // has one; a stream's table grows from a modest start instead.
     let n = usize::try_from(element.count).unwrap_or(0);
+    let n = if body.sized() {
+        n
+    } else {
+        n.min(STREAM_RESERVE)
+    };
     let mut table = Table {
         positions: reserve(n, keep).unwrap_or_default(),
         normals: reserve(n, keep && plan.normals),
@@ -134,6 +140,9 @@ pub(super) fn read<B: Body>(
     }
     Ok(table)
 }
+
+/// Most vertices reserved up front for a stream, whose count no size vouches for.
+const STREAM_RESERVE: usize = 1 << 16;
 
 /// Room for `n` values, when they are wanted.
 fn reserve<T>(n: usize, wanted: bool) -> Option<Vec<T>> {

@@ -30,6 +30,8 @@ struct Parser<'a> {
     opts: &'a StlOptions,
     /// Why the file is not binary STL, for errors on lines that do not look like text.
     binary_note: &'a str,
+    /// Whether the input may be scanned ahead (and back): a file may, a stream may not.
+    lookahead: bool,
     at: Location,
     state: State,
     solids: u64,
@@ -39,19 +41,22 @@ struct Parser<'a> {
     facets: Facets,
 }
 
-/// Parses the ASCII STL `input` (at its start). `binary_note` says why it is not binary STL.
+/// Parses the ASCII STL `input` (at its start). `binary_note` says why it is not binary STL;
+/// `lookahead` says whether `input` may be scanned ahead and back (false for a stream).
 pub(super) fn read<R: BufRead + Seek>(
     input: R,
     file: &str,
     sink: &mut dyn TriangleSink,
     opts: &StlOptions,
     binary_note: &str,
+    lookahead: bool,
 ) -> Result<(), ImportError> {
     let mut lines = Lines::new(input, opts.max_line_bytes, 0, 0);
     let mut p = Parser {
         file,
         opts,
         binary_note,
+        lookahead,
         at: Location::line(file, 0),
         state: State::Outside,
         solids: 0,
@@ -137,7 +142,8 @@ impl Parser<'_> {
         }
     }
 
-    /// `solid name`: a part when the file has several solids or this one is named.
+    /// `solid name`: a part when the file has several solids or this one is named. Without
+    /// lookahead an unnamed first solid cannot know whether another follows, and is no part.
     fn begin_solid<R: BufRead + Seek>(
         &mut self,
         name: String,
@@ -150,16 +156,18 @@ impl Parser<'_> {
         if sink.positions_only() {
             return Ok(());
         }
-        let declare = !name.is_empty() || self.solids > 1 || {
-            let io = |source| ImportError::Io {
-                path: self.file.to_string(),
-                source,
-            };
-            let back = lines.offset();
-            let more = another_solid(lines.get_mut()).map_err(io)?;
-            lines.get_mut().seek(SeekFrom::Start(back)).map_err(io)?;
-            more
-        };
+        let declare = !name.is_empty()
+            || self.solids > 1
+            || (self.lookahead && {
+                let io = |source| ImportError::Io {
+                    path: self.file.to_string(),
+                    source,
+                };
+                let back = lines.offset();
+                let more = another_solid(lines.get_mut()).map_err(io)?;
+                lines.get_mut().seek(SeekFrom::Start(back)).map_err(io)?;
+                more
+            });
         if declare {
             let name = if name.is_empty() {
                 format!("solid {}", self.solids)

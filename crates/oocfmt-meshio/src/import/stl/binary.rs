@@ -9,7 +9,8 @@ use super::facet::Facets;
 use super::{StlOptions, BINARY_FACET, BINARY_HEAD};
 use crate::import::{ImportError, Location, TriangleSink};
 
-/// Reads `count` facets from `input`, which stands just after the facet count.
+/// Reads `count` facets from `input`, which stands just after the facet count. `short` says
+/// why the input may end inside a facet, for the error when it does.
 pub(super) fn read<R: Read>(
     mut input: R,
     file: &str,
@@ -17,6 +18,7 @@ pub(super) fn read<R: Read>(
     count: u32,
     sink: &mut dyn TriangleSink,
     opts: &StlOptions,
+    short: &str,
 ) -> Result<(), ImportError> {
     let convention = Convention::of(header, opts.colours);
     let mut facets = Facets::new(file);
@@ -32,7 +34,7 @@ pub(super) fn read<R: Read>(
         input.read_exact(&mut record).map_err(|e| match e.kind() {
             ErrorKind::UnexpectedEof => ImportError::Parse {
                 at: at.clone(),
-                message: "the file ends inside this facet (it changed while being read?)".into(),
+                message: format!("the input ends inside this facet ({short})"),
             },
             _ => ImportError::Io {
                 path: at.to_string(),
