@@ -1,16 +1,14 @@
 #!/usr/bin/env python3
-"""LOD against the true picture, pre-filtered records against opaque ones (issue 25's table):
-for each scene, converts it twice (`oocfmt convert`, and `--unfiltered` for the 1.1-style opaque
-records), prints each conversion's time and file size, then runs `oocfmt curve --cache blocking
---json` at the default (framing) view and at a close view (the eye at 0.35 of the framing
-distance) on three series: the opaque records, the pre-filtered ones as `render` shows them by
-default, and the pre-filtered ones with `--translucent`. It prints per PoE the warm frame time,
-its ratio to PoE 0 of the same series,
-the working set and the error against full detail supersampled on the model's pixels: RMSE,
-SSIM, share within 8 levels and the mean signed luminance bias. The first line of each table is
-the aliasing floor: full detail at one ray per pixel against the same reference.
-Timings are medians of `--repeat` warm frames on a shared machine: compare ratios within one
-run. The machine is printed first.
+"""LOD against the true picture (issue 25's table): for each scene, converts it three ways
+(`oocfmt convert --lod voxel --unfiltered`, the 1.1-style opaque voxels; `--lod voxel`,
+pre-filtered voxels; and the default, pre-filtered R-LODs), prints each conversion's time and
+file size, then runs `oocfmt curve --cache blocking --json` on each file at the default
+(framing) view and at a close view (the eye at 0.35 of the framing distance). It prints per PoE
+the warm frame time, its ratio to PoE 0 of the same file, the working set and the error against
+full detail supersampled on the model's pixels: RMSE, SSIM, share within 8 levels and the mean
+signed luminance bias. The first line of each table is the aliasing floor: full detail at one
+ray per pixel against the same reference. Timings are medians of `--repeat` warm frames on a
+shared machine: compare ratios within one run. The machine is printed first.
 
     cargo build --release -p oocfmt-cli
     python3 tools/bench-lod.py --scenes mandelbulb:1e6,cad:1e6 --dir /tmp/lod
@@ -31,11 +29,17 @@ from benchlib import generated_scenes, machine, require_binary, run
 FRAMING = (0.55, 0.45, 0.7)
 
 
-def convert(obj, out, unfiltered):
+# The files compared: a label, the file name's suffix and the `convert` flags.
+FILES = (("voxels, opaque (--lod voxel --unfiltered)", "voxel-opaque", ["--lod", "voxel", "--unfiltered"]),
+         ("voxels, pre-filtered (--lod voxel)", "voxel", ["--lod", "voxel"]),
+         ("R-LODs, pre-filtered (the default)", "rlod", []))
+
+
+def convert(obj, out, flags):
     """Converts `obj` (skipped when `out` exists) and returns (seconds or None, bytes)."""
     seconds = None
     if not os.path.exists(out):
-        args = ["convert", obj, "-o", out, "--quiet"] + (["--unfiltered"] if unfiltered else [])
+        args = ["convert", obj, "-o", out, "--quiet"] + flags
         start = time.monotonic()
         run(args)
         seconds = time.monotonic() - start
@@ -126,22 +130,19 @@ def main():
     print(f"machine: {machine()}")
     for scene, size, stem in generated_scenes(a.scenes, work):
         obj = stem + ".obj"
-        files = {}
-        for kind, unfiltered in (("opaque", True), ("pre-filtered", False)):
-            path = stem + ("-opaque" if unfiltered else "-filtered") + ".oocf"
-            seconds, size_bytes = convert(obj, path, unfiltered)
+        series = []
+        for label, suffix, flags in FILES:
+            path = f"{stem}-{suffix}.oocf"
+            seconds, size_bytes = convert(obj, path, flags)
             took = f"{seconds:.1f} s" if seconds is not None else "(kept from an earlier run)"
-            print(f"{scene} {size}: {kind}: convert {took}, {size_bytes / 2**20:.1f} MiB")
-            files[kind] = path
-        series = [("opaque records (--unfiltered)", files["opaque"], []),
-                  ("pre-filtered, shown opaque", files["pre-filtered"], []),
-                  ("pre-filtered, --translucent", files["pre-filtered"], ["--translucent"])]
+            print(f"{scene} {size}: {label}: convert {took}, {size_bytes / 2**20:.1f} MiB")
+            series.append((label, path))
         for view in a.views.split(","):
             curves = []
-            for k, (kind, path, extra) in enumerate(series):
+            for k, (label, path) in enumerate(series):
                 args = close_view(path, a.size) if view == "close" else []
                 out = f"{path}.{view}.{k}.curve.json"
-                curves.append((kind, curve(path, a, args, out, extra)))
+                curves.append((label, curve(path, a, args, out, [])))
             table(f"{scene} {size}, {view} view, {a.size}, blocking cache, error against "
                   f"{a.reference_spp} rays per pixel on the model's pixels", curves)
 

@@ -78,9 +78,9 @@ fn curve_writes_json_plot_and_sheet() {
     let poes: Vec<f64> = rows.iter().map(|r| r["poe"].as_f64().unwrap()).collect();
     assert_eq!(poes, [0.0, 2.0, 16.0, 0.0, 2.0, 16.0]);
     for r in rows {
-        assert_eq!(r["lod"], "voxel");
+        assert_eq!(r["lod"], "rlod");
         let p = &r["primary"];
-        let total: u64 = ["triangle", "voxel", "proxy", "miss"]
+        let total: u64 = ["triangle", "voxel", "rlod", "proxy", "miss"]
             .iter()
             .map(|k| p[k].as_u64().unwrap())
             .sum();
@@ -112,11 +112,12 @@ fn curve_writes_json_plot_and_sheet() {
             // cache once it is warm.
             assert_eq!(e, fe, "{r}");
             assert_eq!(p["voxel"], 0);
+            assert_eq!(p["rlod"], 0);
             assert_eq!(p, &floor["primary"]);
         }
     }
-    // At 16 pixels of error on a 48-pixel-high image the voxels show.
-    assert!(rows[2]["primary"]["voxel"].as_u64().unwrap() > 0);
+    // At 16 pixels of error on a 48-pixel-high image the R-LODs (the file's default) show.
+    assert!(rows[2]["primary"]["rlod"].as_u64().unwrap() > 0);
 
     let svg = std::fs::read_to_string(d.join("curve.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
@@ -208,7 +209,7 @@ fn curve_plots_png_and_walks_a_path() {
     assert_eq!(json["frames"], 3);
     let rows = json["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 2);
-    let rays: u64 = ["triangle", "voxel", "proxy", "miss"]
+    let rays: u64 = ["triangle", "voxel", "rlod", "proxy", "miss"]
         .iter()
         .map(|k| rows[0]["primary"][k].as_u64().unwrap())
         .sum();

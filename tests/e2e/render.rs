@@ -68,7 +68,7 @@ fn render_writes_a_png_a_depth_pfm_and_stats() {
     let stats: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("stats.json")).unwrap()).unwrap();
     let p = &stats["primary"];
-    let total: u64 = ["triangle", "voxel", "proxy", "miss"]
+    let total: u64 = ["triangle", "voxel", "rlod", "proxy", "miss"]
         .iter()
         .map(|k| p[k].as_u64().unwrap())
         .sum();
@@ -243,7 +243,7 @@ fn render_path_writes_numbered_pngs_and_per_frame_figures() {
     assert_eq!(frames.len(), 3);
     for f in frames {
         let p = &f["primary"];
-        let total: u64 = ["triangle", "voxel", "proxy", "miss"]
+        let total: u64 = ["triangle", "voxel", "rlod", "proxy", "miss"]
             .iter()
             .map(|k| p[k].as_u64().unwrap())
             .sum();

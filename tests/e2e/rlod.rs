@@ -120,14 +120,14 @@ fn every_lod_kind_converts_verifies_and_is_named() {
     }
     // The LOD entries grow: voxels, then records instead, then both.
     assert!(sizes[2] > sizes[0] && sizes[2] > sizes[1], "{sizes:?}");
-    // The default is voxels, byte for byte.
+    // The default is R-LODs, byte for byte.
     run_ok(
         &["convert", "mb.obj", "-o", "mb-default.oocf", "--quiet"],
         d,
     );
     assert_eq!(
         std::fs::read(d.join("mb-default.oocf")).unwrap(),
-        std::fs::read(d.join("mb-voxel.oocf")).unwrap()
+        std::fs::read(d.join("mb-rlod.oocf")).unwrap()
     );
 }
 

@@ -47,9 +47,9 @@ pub struct Args {
     /// Node levels per treelet; every this-many levels holds the LOD voxels
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=8))]
     pub treelet_height: u8,
-    /// LOD representations to store in the LOD nodes: voxel (Áfra 2012), rlod (planes, Yoon
-    /// et al. 2006) or both, in core or out of core alike
-    #[arg(long, value_enum, default_value = "voxel")]
+    /// LOD representations to store in the LOD nodes: rlod (planes, Yoon et al. 2006), voxel
+    /// (Áfra 2012) or both, in core or out of core alike
+    #[arg(long, value_enum, default_value = "rlod")]
     pub lod: LodKindsArg,
     /// Write opaque, unfiltered LOD records as version 1.1 did (no shade or coverage, spec
     /// §5.1): for 1.1 readers, and to measure what pre-filtering gains

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
+use oocfmt::records::LodKinds;
 use oocfmt::verify::{verify, Depth, VerifyOptions};
 use oocfmt::{Codec, FileSource, ReadOptions, Reader, WriteOptions};
 use oocfmt_build::convert::{convert, ConvertOptions};
@@ -60,8 +61,10 @@ pub fn run(a: &Args) -> CliResult {
             a.poe
         )));
     }
+    // R-LODs, as `convert` stores by default.
     let write = WriteOptions {
         codec: a.codec,
+        lod: LodKinds::RLOD.filtered(),
         ..WriteOptions::default()
     }
     .with_block_size(a.block_size)?;

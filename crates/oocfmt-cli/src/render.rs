@@ -45,7 +45,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1.0)]
     pub poe: f32,
     /// LOD representation to stop on: voxel (Áfra 2012) or rlod (planes, Yoon et al. 2006);
-    /// default: voxel when the file has voxels, else rlod. A kind the file lacks is an error
+    /// default: rlod when the file has R-LODs, else voxel. A kind the file lacks is an error
     #[arg(long, value_enum)]
     pub lod: Option<LodArg>,
     /// Block cache: `async` (fetcher threads load blocks in the background, rays never wait

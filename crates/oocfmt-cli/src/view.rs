@@ -55,7 +55,7 @@ pub struct Args {
     /// (past the page cache); not with mmap
     #[arg(long, value_enum, default_value = "buffered")]
     pub io: IoArg,
-    /// LOD representation to stop on (default: voxel when the file has voxels, else rlod)
+    /// LOD representation to stop on (default: rlod when the file has R-LODs, else voxel)
     #[arg(long, value_enum)]
     pub lod: Option<LodArg>,
     /// Fetcher threads of the async cache (default: half the cores, at least one)

@@ -40,6 +40,7 @@ mod packet;
 pub mod parts;
 pub mod pick;
 pub mod render;
+pub mod rough;
 pub mod sampling;
 pub mod scene;
 pub mod section;

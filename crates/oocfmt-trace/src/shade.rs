@@ -12,6 +12,7 @@ use crate::intersect::Ray;
 use crate::light::{unit_towards, Shadows};
 use crate::occlusion::Occlusion;
 use crate::parts::{tint, PartFilter};
+use crate::rough::rough_cosine;
 use crate::spawn::{triangle_normal, Origin};
 use crate::traverse::{Hit, Memo, Surface};
 
@@ -253,39 +254,6 @@ impl<'a> Lighting<'a> {
     }
 }
 
-/// The mean Lambert term of a rough surface of shade σ (spec §5.1) lit and seen from the same
-/// direction, at cosine `cos` to its mean normal: the V-groove model, whose facets tilt by
-/// β = acos σ either way. Seen along the mean normal it is σ, the mean cosine the builder
-/// measured; obliquely the facets turned to the viewer fill more of the view, and both halves
-/// of the groove show while θ + β ≤ 90° (beyond, only the near one). σ = 1 is a flat surface:
-/// `cos` itself.
-pub fn rough_cosine(cos: f32, sigma: f32) -> f32 {
-    let cos = if cos.is_nan() {
-        1.0
-    } else {
-        cos.clamp(0.0, 1.0)
-    };
-    let sigma = if sigma.is_nan() {
-        1.0
-    } else {
-        sigma.clamp(0.0, 1.0)
-    };
-    if sigma >= 1.0 {
-        return cos;
-    }
-    let sin = (1.0 - cos * cos).max(0.0).sqrt();
-    let sin_b = (1.0 - sigma * sigma).max(0.0).sqrt();
-    // cos(θ + β) ≥ 0: both facets are in view.
-    if cos * sigma - sin * sin_b >= 0.0 && cos * sigma > 0.0 {
-        let cos_2t = 2.0 * cos * cos - 1.0;
-        let cos_2b = 2.0 * sigma * sigma - 1.0;
-        ((1.0 + cos_2t * cos_2b) / (2.0 * cos * sigma)).clamp(0.0, 1.0)
-    } else {
-        // cos(θ − β): the facet turned towards the viewer.
-        (cos * sigma + sin * sin_b).clamp(0.0, 1.0)
-    }
-}
-
 /// Where a hit is shaded from: the origin of its secondary rays, and its geometric and shading
 /// unit normals, both turned towards the viewer.
 struct ShadingPoint {
@@ -425,40 +393,6 @@ mod tests {
         while c < 1.01 {
             assert_eq!(encode_srgb(c), srgb_exact(c), "at {c}");
             c = if c < 1e-3 { c + 1e-7 } else { c * 1.0001 };
-        }
-    }
-}
-
-#[cfg(test)]
-mod rough_tests {
-    use super::rough_cosine;
-
-    #[test]
-    fn the_v_groove_cosine_has_its_known_answers() {
-        // Flat: the cosine itself. Head-on: σ.
-        for c in [0.0, 0.3, 0.7, 1.0] {
-            assert!((rough_cosine(c, 1.0) - c).abs() < 1e-6);
-        }
-        for s in [0.2, 0.5, 0.9] {
-            assert!((rough_cosine(1.0, s) - s).abs() < 1e-6);
-        }
-        // β = 30°, θ = 45°: both facets in view, 1 / (2 cos 45° cos 30°).
-        let (b, t) = (30f32.to_radians(), 45f32.to_radians());
-        let want = 1.0 / (2.0 * t.cos() * b.cos());
-        assert!((rough_cosine(t.cos(), b.cos()) - want).abs() < 1e-5);
-        // θ = 70°: past 90° − β only the near facet shows, cos(θ − β).
-        let t = 70f32.to_radians();
-        assert!((rough_cosine(t.cos(), b.cos()) - (t - b).cos()).abs() < 1e-5);
-        // Continuous where the far facet leaves the view (θ + β = 90°).
-        let edge = 60f32.to_radians();
-        let (lo, hi) = (edge - 1e-3, edge + 1e-3);
-        assert!((rough_cosine(lo.cos(), b.cos()) - rough_cosine(hi.cos(), b.cos())).abs() < 1e-2);
-        // Never out of range, never NaN.
-        for c in [f32::NAN, -1.0, 0.0, 2.0] {
-            for s in [f32::NAN, -1.0, 0.0, 0.5, 2.0] {
-                let l = rough_cosine(c, s);
-                assert!((0.0..=1.0).contains(&l), "{c} {s}: {l}");
-            }
         }
     }
 }

@@ -48,8 +48,9 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "buffered")]
     pub io: IoArg,
     /// LOD representations to compare, comma-separated (one series each with every cache):
-    /// voxel, rlod; each must be in the file (`convert --lod both` holds both)
-    #[arg(long, value_enum, default_value = "voxel", value_delimiter = ',')]
+    /// voxel, rlod; each must be in the file (`convert --lod both` holds both). Default: the
+    /// one `render` stops on (rlod when the file has R-LODs, else voxel)
+    #[arg(long, value_enum, value_delimiter = ',')]
     pub lod: Vec<LodArg>,
     #[command(flatten)]
     pub view: View,
@@ -228,13 +229,17 @@ pub fn run(a: &Args) -> CliResult {
     let lods = listed_once("--lod", &a.lod, |l| LodKind::from(l).name())?;
     // Every kind is checked before anything is rendered. The reference does not depend on the
     // kind: PoE 0 never stops on a LOD node.
-    let scenes = lods
-        .iter()
-        .map(|&l| {
-            let l = LodKind::from(l);
-            Ok((l, Arc::new(args::open_scene(&a.model, Some(l), a.io)?)))
-        })
-        .collect::<Result<Vec<_>, CliError>>()?;
+    let scenes = if lods.is_empty() {
+        let scene = args::open_scene(&a.model, None, a.io)?;
+        vec![(scene.lod(), Arc::new(scene))]
+    } else {
+        lods.iter()
+            .map(|&l| {
+                let l = LodKind::from(l);
+                Ok((l, Arc::new(args::open_scene(&a.model, Some(l), a.io)?)))
+            })
+            .collect::<Result<Vec<_>, CliError>>()?
+    };
     let Some((_, scene)) = scenes.first() else {
         return Err(CliError::Usage(
             "--lod: expected at least one kind".to_string(),
