@@ -249,11 +249,7 @@ fn render(r: &ConvertReport) -> String {
         "tree       {} basic + {} LOD nodes, {} leaves, depth {}",
         r.basic_nodes, r.lod_nodes, r.leaves, r.depth
     );
-    let _ = writeln!(
-        o,
-        "LOD        {}: {} one-sample + {} six-sample voxels, {} proxies",
-        r.lod_kinds, r.voxels_single, r.voxels_six, r.proxies
-    );
+    let _ = writeln!(o, "LOD        {}: {}", r.lod_kinds, lod_line(r));
     for (kind, b) in &r.blocks {
         let _ = writeln!(
             o,
@@ -304,4 +300,51 @@ fn render(r: &ConvertReport) -> String {
         r.spill_bytes_per_triangle
     );
     o
+}
+
+/// The LOD records a conversion wrote: voxels by sample count and R-LODs (one per LOD node
+/// when the file holds them), then the proxies.
+fn lod_line(r: &ConvertReport) -> String {
+    let mut parts = Vec::new();
+    if r.lod_kinds.contains("voxel") {
+        parts.push(format!(
+            "{} one-sample + {} six-sample voxels",
+            r.voxels_single, r.voxels_six
+        ));
+    }
+    if r.lod_kinds.contains("rlod") {
+        parts.push(format!("{} R-LODs", r.lod_nodes));
+    }
+    parts.push(format!("{} proxies", r.proxies));
+    parts.join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::lod_line;
+    use oocfmt_build::report::ConvertReport;
+
+    fn report(kinds: &str) -> ConvertReport {
+        ConvertReport {
+            lod_kinds: kinds.to_owned(),
+            lod_nodes: 7,
+            voxels_single: 3,
+            voxels_six: 4,
+            proxies: 2,
+            ..ConvertReport::default()
+        }
+    }
+
+    #[test]
+    fn the_lod_line_names_what_the_file_holds() {
+        assert_eq!(lod_line(&report("rlod")), "7 R-LODs, 2 proxies");
+        assert_eq!(
+            lod_line(&report("voxel")),
+            "3 one-sample + 4 six-sample voxels, 2 proxies"
+        );
+        assert_eq!(
+            lod_line(&report("voxel+rlod")),
+            "3 one-sample + 4 six-sample voxels, 7 R-LODs, 2 proxies"
+        );
+    }
 }

@@ -247,13 +247,14 @@ fn print_error(name: &str, note: &str, e: &ImageError) -> Result<(), CliError> {
 fn print_frame(png: &Path, s: &FrameStats) -> Result<(), CliError> {
     let p = &s.primary;
     outln!(
-        "rendered   {} (--poe {}): {:.1} ms warm, {:.2} Mrays/s; rays end on {} triangles, {} voxels, {} proxies, {} misses; working set {:.1} MiB in {} blocks",
+        "rendered   {} (--poe {}): {:.1} ms warm, {:.2} Mrays/s; rays end on {} triangles, {} voxels, {} R-LODs, {} proxies, {} misses; working set {:.1} MiB in {} blocks",
         png.display(),
         s.poe,
         s.ms,
         s.rays_per_second / 1e6,
         p.triangle,
         p.voxel,
+        p.rlod,
         p.proxy,
         p.miss,
         s.cache.bytes_resident as f64 / 1048576.0,
