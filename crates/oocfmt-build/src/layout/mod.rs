@@ -22,7 +22,7 @@ use oocfmt::{BlockKind, EncodedBlock, Metadata, WriteOptions, WriteSummary, Writ
 use rayon::prelude::*;
 
 use crate::kdtree::{KdError, KdTree};
-use crate::lod::{DEFAULT_VOXEL_THRESHOLD, LOD_SAMPLING, RLOD_FIT};
+use crate::lod::{DEFAULT_VOXEL_THRESHOLD, LOD_SAMPLING, LOD_SAMPLING_PROXIES, RLOD_FIT};
 use oocfmt_meshio::mesh::{Mesh, MeshError};
 use plan::{Role, TreePlan};
 use triangles::{LeafRef, TriangleCounts, VertexTable};
@@ -403,8 +403,9 @@ fn metadata(
     }
     for d in plan.lod.iter().filter(|_| plan.kinds.voxel) {
         match d.voxel {
-            Voxel::Single(..) => counts.voxels_single += 1,
-            Voxel::Six(..) => counts.voxels_six += 1,
+            Some(Voxel::Single(..)) => counts.voxels_single += 1,
+            Some(Voxel::Six(..)) => counts.voxels_six += 1,
+            None => {}
         }
     }
     for (_, c) in triangle_blocks {
@@ -460,8 +461,12 @@ fn metadata(
 /// says whether entries have them).
 pub(crate) fn lod_params(kinds: LodKinds, voxel_threshold: f32) -> Vec<(String, String)> {
     let kinds = kinds.with_parts(false);
+    let sampling = match kinds.voxel {
+        true => LOD_SAMPLING,
+        false => LOD_SAMPLING_PROXIES,
+    };
     let mut params = vec![
-        ("lod_sampling".into(), LOD_SAMPLING.into()),
+        ("lod_sampling".into(), sampling.into()),
         ("voxel_threshold".into(), voxel_threshold.to_string()),
     ];
     // Recorded only off the default, so voxel-only files stay as they were.

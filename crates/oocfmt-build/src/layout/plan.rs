@@ -128,7 +128,8 @@ impl TreePlan {
     pub fn lod_entry_bytes(&self, id: NodeId) -> usize {
         let voxel = if self.kinds.voxel {
             self.lod_data(id)
-                .map_or(0, |d| d.voxel.byte_len(self.kinds.filtered))
+                .and_then(|d| d.voxel.as_ref())
+                .map_or(0, |v| v.byte_len(self.kinds.filtered))
         } else {
             0
         };
@@ -265,8 +266,12 @@ pub(crate) fn plan_tree_with(tree: &KdTree, spec: &PlanSpec) -> Result<TreePlan,
             let totals = totals.ok_or(LayoutError::Internal("no subtree totals"))?;
             let info = &plan.info;
             let cell = |id: NodeId| info.get(id.index()).map_or(Bounds::EMPTY, |i| i.cell);
+            let sample = crate::lod::Sampling {
+                threshold: *threshold,
+                voxels: kinds.voxel,
+            };
             let mut lod =
-                crate::lod::compute_in(mesh, tree, &lod_nodes, &cell, &totals, *threshold, &wants);
+                crate::lod::compute_in(mesh, tree, &lod_nodes, &cell, &totals, sample, &wants);
             if !kinds.voxel && mesh.part_ids.is_some() {
                 for (d, &p) in lod.iter_mut().zip(&parts) {
                     d.part = p;

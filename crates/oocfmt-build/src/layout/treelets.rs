@@ -127,11 +127,11 @@ impl Encoder<'_> {
             .ok_or(LayoutError::SceneTooLarge)?;
         // The LOD entry (spec §3): the voxel, then the R-LOD, as the file has them, then the
         // part word.
-        let voxel_at = self
-            .plan
-            .kinds
-            .voxel
-            .then(|| self.w.push_voxel(&data.voxel, self.plan.kinds.filtered));
+        let voxel_at = match (self.plan.kinds.voxel, &data.voxel) {
+            (false, _) => None,
+            (true, Some(v)) => Some(self.w.push_voxel(v, self.plan.kinds.filtered)),
+            (true, None) => return Err(LayoutError::Internal("a LOD node has no voxel")),
+        };
         let rlod_at = match self.plan.kinds.rlod {
             true => Some(
                 self.w.push_rlod(

@@ -74,21 +74,21 @@ fn a_rough_surface_keeps_its_mean_shade() {
     // A surface rough enough that the mean normal alone would be far too bright.
     assert!(want < 0.93, "{want}");
     let lod = root_lod(&height_field(a, k, 96));
-    let got = shade_from_above(&lod.voxel);
+    let got = shade_from_above(&lod.sampled_voxel());
     // σ is quantised to 1/255; the rest is the rays' sampling of the field.
     assert!((got - want).abs() < 0.01, "shade {got}, mean cosine {want}");
-    let (_, f) = lod.voxel.face(5);
+    let (_, f) = lod.sampled_voxel().face(5);
     assert_eq!(f.coverage, 255, "the field covers the whole square");
 }
 
 #[test]
 fn a_flat_surface_has_no_footprint_to_store() {
     let lod = root_lod(&height_field(0.0, 1.0, 8));
-    let Voxel::Single(_, f) = lod.voxel else {
+    let Voxel::Single(_, f) = lod.sampled_voxel() else {
         panic!("{:?}", lod.voxel)
     };
     assert_eq!(f.shade, 255);
-    assert!(!lod.voxel.has_footprints() || f.coverage < 255);
+    assert!(!lod.sampled_voxel().has_footprints() || f.coverage < 255);
 }
 
 /// `strips` strips along y of width 1 / (2 strips), one every 1 / strips along x, each `rows`
@@ -123,7 +123,7 @@ pub(crate) fn comb(strips: u32, rows: u32) -> Mesh {
 fn a_comb_covering_half_its_cell_gets_coverage_one_half() {
     let lod = root_lod(&comb(16, 4));
     for face in [4, 5] {
-        let (_, f) = lod.voxel.face(face);
+        let (_, f) = lod.sampled_voxel().face(face);
         let c = f.coverage_f32();
         assert!((c - 0.5).abs() < 0.07, "face {face}: coverage {c}");
     }

@@ -70,6 +70,10 @@ pub fn rlods(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId]) -> Vec<(Rlod, u32)> {
 pub const LOD_SAMPLING: &str = "first-hit rays, Owen-scrambled Sobol: 1 per 8 triangles per face \
      (4..16, x4 while uncertain up to 256), 1 per 24 per diagonal (2..16, else blended faces); \
      shade and coverage per face";
+/// `lod_sampling` in a file without voxels: only the nodes with a proxy are sampled, and their
+/// faces are not refined (checked against the ray counts by a test).
+pub const LOD_SAMPLING_PROXIES: &str = "first-hit rays for proxies only, Owen-scrambled Sobol: \
+     1 per 8 triangles per face (4..16), 1 per 24 per diagonal (2..16, else blended faces)";
 /// The default largest difference (normal component or colour channel) between a face sample
 /// and the mean for a voxel to be stored as one sample.
 pub const DEFAULT_VOXEL_THRESHOLD: f32 = 0.1;
@@ -78,8 +82,9 @@ pub const DEFAULT_VOXEL_THRESHOLD: f32 = 0.1;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LodData {
     /// The node's look from outside: one sample, or one per face when the faces differ by
-    /// more than the voxel threshold.
-    pub voxel: Voxel,
+    /// more than the voxel threshold. `None` where the file stores no voxels (an R-LOD-only
+    /// build samples only the nodes with a proxy, and only for their proxy).
+    pub voxel: Option<Voxel>,
     /// What a ray travelling along each of [`oocfmt::records::PROXY_DIRECTIONS`] sees;
     /// [`Sample::EMPTY`] where no ray hit anything.
     pub proxy_samples: [Sample; 18],
@@ -87,8 +92,20 @@ pub struct LodData {
     pub area: f32,
     /// The part the entry stands for (its part word when the file has `PART_IDS`): the part
     /// most face rays hit; without hits, or for an R-LOD-only entry, the part of the largest
-    /// triangle area in the cell. 0 in a scene without part ids.
+    /// triangle area in the cell. 0 in a scene without part ids, and from [`compute_in`]
+    /// without voxels (the planner takes the R-LOD's part then).
     pub part: u32,
+}
+
+#[cfg(test)]
+impl LodData {
+    /// The voxel of data sampled with voxels.
+    pub(crate) fn sampled_voxel(&self) -> Voxel {
+        match self.voxel {
+            Some(v) => v,
+            None => panic!("sampled without voxels"),
+        }
+    }
 }
 
 impl LodData {
@@ -115,9 +132,11 @@ pub fn compute(mesh: &Mesh, tree: &KdTree, nodes: &[NodeId], voxel_threshold: f3
             .map_or(Bounds::EMPTY, |&(_, c)| c)
     };
     let totals = triangle_totals(mesh, tree);
-    compute_in(mesh, tree, nodes, &cell, &totals, voxel_threshold, &|_| {
-        true
-    })
+    let sample = Sampling {
+        threshold: voxel_threshold,
+        voxels: true,
+    };
+    compute_in(mesh, tree, nodes, &cell, &totals, sample, &|_| true)
 }
 
 /// The distinct triangles and their area under every node of `tree`, for [`compute_in`].
@@ -134,14 +153,15 @@ pub(crate) fn triangle_totals(mesh: &Mesh, tree: &KdTree) -> Totals {
 /// already (the layout planner knows every cell). The twelve diagonal proxy directions are
 /// cast only for the nodes `proxied` names: a node without a proxy never writes them, and they
 /// are most of the rays of a large subtree; the others' diagonal samples stay
-/// [`Sample::EMPTY`].
+/// [`Sample::EMPTY`]. Without voxels a node without a proxy casts no ray at all: only its area
+/// is kept.
 pub(crate) fn compute_in(
     mesh: &Mesh,
     tree: &KdTree,
     nodes: &[NodeId],
     cell: &(dyn Fn(NodeId) -> Bounds + Sync),
     totals: &Totals,
-    voxel_threshold: f32,
+    sample: Sampling,
     proxied: &(dyn Fn(NodeId) -> bool + Sync),
 ) -> Vec<LodData> {
     let corners = triangle_corners(mesh);
@@ -156,13 +176,22 @@ pub(crate) fn compute_in(
             },
             |(tracer, scratch), &id| {
                 let (triangles, area) = totals.of(id);
+                let diagonals = proxied(id);
+                if !sample.voxels && !diagonals {
+                    return LodData {
+                        voxel: None,
+                        proxy_samples: [Sample::EMPTY; 18],
+                        area: (area as f32).min(f32::MAX),
+                        part: 0,
+                    };
+                }
                 let node = NodeToSample {
                     id,
                     cell: cell(id),
                     totals: NodeTotals { triangles, area },
-                    diagonals: proxied(id),
+                    diagonals,
                 };
-                node_lod(mesh, tree, tracer, scratch, node, voxel_threshold)
+                node_lod(mesh, tree, tracer, scratch, node, sample)
             },
         )
         .collect()
@@ -260,6 +289,14 @@ pub fn subtree_triangles(tree: &KdTree, id: NodeId) -> Vec<u32> {
     out
 }
 
+/// What [`compute_in`] samples: the one-sample voxel threshold, and whether the file stores
+/// voxels (without them only the proxies' samples are wanted).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Sampling {
+    pub threshold: f32,
+    pub voxels: bool,
+}
+
 /// A LOD node to sample: its cell, what its subtree holds, and whether it casts the diagonal
 /// proxy directions.
 struct NodeToSample {
@@ -276,7 +313,7 @@ fn node_lod<'a>(
     tracer: &mut Tracer<'a>,
     scratch: &mut Scratch,
     node: NodeToSample,
-    threshold: f32,
+    sample: Sampling,
 ) -> LodData {
     let NodeToSample {
         id,
@@ -309,22 +346,24 @@ fn node_lod<'a>(
         target,
         cell,
         triangles: totals.triangles,
-        threshold,
+        threshold: sample.threshold,
         diagonals,
         force_max: false,
-        count_parts: mesh.part_ids.is_some(),
+        refine: sample.voxels,
+        count_parts: sample.voxels && mesh.part_ids.is_some(),
     }
     .run();
     // No ray hit (or no part ids): the part of the largest area in the cell.
     let part = sampled.part.unwrap_or_else(|| match mesh.part_ids {
+        Some(_) if !sample.voxels => 0,
         Some(_) if each => rlod::fit(mesh, &scratch.triangles, cell).part,
         Some(_) => rlod::fit(mesh, &subtree_triangles(tree, id), cell).part,
         None => 0,
     });
-    LodData {
-        // No ray hit anything (a sliver too thin for the rays between them): the voxel still
-        // needs a colour, so fall back on the area-weighted mean of the subtree.
-        voxel: sampled.voxel.unwrap_or_else(|| {
+    // No ray hit anything (a sliver too thin for the rays between them): the voxel still
+    // needs a colour, so fall back on the area-weighted mean of the subtree.
+    let voxel = sample.voxels.then(|| {
+        sampled.voxel.unwrap_or_else(|| {
             let tris = if each {
                 scratch.triangles.clone()
             } else {
@@ -332,7 +371,10 @@ fn node_lod<'a>(
             };
             // No ray hit: whatever is there covers too little of the cell to be seen.
             Voxel::Single(unoccluded_mean(mesh, &tris), Footprint::new(1.0, 0.0))
-        }),
+        })
+    });
+    LodData {
+        voxel,
         proxy_samples: sampled.proxy,
         area: (totals.area as f32).min(f32::MAX),
         part,
@@ -363,14 +405,15 @@ pub fn sample_cell(
         threshold,
         diagonals: true,
         force_max: true,
+        refine: true,
         count_parts: true,
     }
     .run();
     LodData {
-        voxel: sampled.voxel.unwrap_or(Voxel::Single(
+        voxel: Some(sampled.voxel.unwrap_or(Voxel::Single(
             Sample::pack([0.0, 0.0, 1.0], [0.5; 3]),
             Footprint::new(1.0, 0.0),
-        )),
+        ))),
         proxy_samples: sampled.proxy,
         area: (area as f32).min(f32::MAX),
         part: sampled.part.unwrap_or(fallback_part),

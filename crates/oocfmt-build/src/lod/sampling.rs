@@ -144,6 +144,10 @@ pub(super) struct NodeSampler<'a, 'b> {
     /// Cast the most rays everywhere, whatever the hits say: the ray sequence is then fixed in
     /// advance, as an [`Target::Oracle`] that records rays before answering them needs.
     pub force_max: bool,
+    /// Cast more face rays where a face's standard error is above half the voxel threshold.
+    /// Voxels want it; a file without voxels samples faces only for proxies, which stand in
+    /// until their block arrives and keep the base count, as their diagonals do.
+    pub refine: bool,
     /// Count the parts the face rays hit (the mesh's part ids, or the oracle's answers): the
     /// entry's part word is the one hit most.
     pub count_parts: bool,
@@ -231,7 +235,8 @@ impl NodeSampler<'_, '_> {
             // More rays where the standard error could move the sample by half the one-sample
             // threshold.
             let mut cast = base;
-            while (FACE_RAYS_BASE..FACE_RAYS_MAX).contains(&cast)
+            while self.refine
+                && (FACE_RAYS_BASE..FACE_RAYS_MAX).contains(&cast)
                 && acc.standard_error() > f64::from(self.threshold) / 2.0
             {
                 let more = (4 * cast).min(FACE_RAYS_MAX);

@@ -80,7 +80,7 @@ fn a_flat_patch_gets_one_sample_and_is_seen_from_both_sides() {
     let mut mesh = two_walls();
     mesh.triangles.truncate(2);
     let lod = lod_of_root(&mesh, DEFAULT_VOXEL_THRESHOLD);
-    let Voxel::Single(s, _) = lod.voxel else {
+    let Voxel::Single(s, _) = lod.sampled_voxel() else {
         panic!("{:?}", lod.voxel)
     };
     // Oriented as the mesh orients it, though half the rays see its back.
@@ -100,7 +100,7 @@ fn a_flat_patch_gets_one_sample_and_is_seen_from_both_sides() {
 #[test]
 fn differently_facing_walls_get_six_samples() {
     let lod = lod_of_root(&two_walls(), DEFAULT_VOXEL_THRESHOLD);
-    let Voxel::Six(s, _) = lod.voxel else {
+    let Voxel::Six(s, _) = lod.sampled_voxel() else {
         panic!("{:?}", lod.voxel)
     };
     // Through +x the blue wall's front, through −x its back; through ±z the red floor.
@@ -116,7 +116,7 @@ fn differently_facing_walls_get_six_samples() {
     assert_eq!(lod.area, 2.0);
     // With a threshold above every difference the same node is one sample.
     assert!(matches!(
-        lod_of_root(&two_walls(), 3.0).voxel,
+        lod_of_root(&two_walls(), 3.0).sampled_voxel(),
         Voxel::Single(_, _)
     ));
 }
@@ -177,7 +177,7 @@ fn hull_with_cargo(far: bool) -> Mesh {
 }
 
 fn assert_green(lod: &LodData, what: &str) {
-    match lod.voxel {
+    match lod.sampled_voxel() {
         Voxel::Single(s, _) => assert_eq!(s.colour(), GREEN, "{what}"),
         Voxel::Six(s, _) => assert!(s.iter().all(|f| f.colour() == GREEN), "{what}: {s:?}"),
     }
@@ -195,7 +195,7 @@ fn hidden_cargo_does_not_tint_its_hull() {
     let lod = compute(&mesh, &tree, &[root], DEFAULT_VOXEL_THRESHOLD);
     assert_green(&lod[0], "root");
     // Every face sees the hull's outside: the normals point out of the box.
-    let Voxel::Six(faces, _) = lod[0].voxel else {
+    let Voxel::Six(faces, _) = lod[0].sampled_voxel() else {
         panic!("a box looks different from each side: {:?}", lod[0].voxel)
     };
     let outward = [
@@ -263,7 +263,7 @@ fn a_sliver_the_rays_miss_still_gets_a_voxel() {
     let tree = KdTree::from_parts(&mesh, nodes, Some(NodeId(0)), mesh.bounds(), Vec::new());
     let Ok(tree) = tree else { panic!("{tree:?}") };
     let lod = compute(&mesh, &tree, &[NodeId(0)], DEFAULT_VOXEL_THRESHOLD);
-    let Voxel::Single(s, _) = lod[0].voxel else {
+    let Voxel::Single(s, _) = lod[0].sampled_voxel() else {
         panic!("{:?}", lod[0].voxel)
     };
     assert_eq!(s.colour(), [0.0, 0.0, 1.0]);
@@ -291,7 +291,7 @@ fn lod_data_is_the_same_whatever_the_thread_count() {
     assert!(one == run(2), "one and two threads differ");
     let six = one
         .iter()
-        .filter(|l| matches!(l.voxel, Voxel::Six(_, _)))
+        .filter(|l| matches!(l.sampled_voxel(), Voxel::Six(_, _)))
         .count();
     assert!(six > 0 && six < one.len(), "{six} of {}", one.len());
 }
@@ -305,6 +305,63 @@ fn the_recorded_sampling_matches_the_ray_counts() {
          else blended faces); shade and coverage per face"
     );
     assert_eq!(LOD_SAMPLING, described);
+    let proxies = format!(
+        "first-hit rays for proxies only, Owen-scrambled Sobol: 1 per {TRIANGLES_PER_FACE_RAY} \
+         triangles per face ({FACE_RAYS_MIN}..{FACE_RAYS_BASE}), 1 per \
+         {TRIANGLES_PER_DIAGONAL_RAY} per diagonal ({DIAGONAL_RAYS_MIN}..{DIAGONAL_RAYS_MAX}, \
+         else blended faces)"
+    );
+    assert_eq!(LOD_SAMPLING_PROXIES, proxies);
+}
+
+/// LOD data of every inner node of a demo scene, with or without voxels, the root proxied.
+fn sampled(voxels: bool) -> (KdTree, Vec<NodeId>, Vec<LodData>) {
+    let mesh = oocfmt_scenes::demo_scene(30_000);
+    let tree = tree_of(&mesh, 8);
+    let inner: Vec<NodeId> = (0..tree.nodes().len() as u32)
+        .map(NodeId)
+        .filter(|&id| matches!(tree.node(id), Some(KdNode::Inner { .. })))
+        .collect();
+    let cells = cells_of(&tree, &inner);
+    let cell = |id: NodeId| {
+        cells
+            .iter()
+            .find(|&&(n, _)| n == id)
+            .map_or(Bounds::EMPTY, |&(_, c)| c)
+    };
+    let totals = triangle_totals(&mesh, &tree);
+    let sample = Sampling {
+        threshold: DEFAULT_VOXEL_THRESHOLD,
+        voxels,
+    };
+    let root = tree.root();
+    let lod = compute_in(&mesh, &tree, &inner, &cell, &totals, sample, &|id| {
+        Some(id) == root
+    });
+    (tree, inner, lod)
+}
+
+#[test]
+fn without_voxels_only_proxied_nodes_are_sampled_and_without_refinement() {
+    let (tree, inner, with) = sampled(true);
+    let (_, _, without) = sampled(false);
+    let mut refined = 0;
+    for ((id, w), o) in inner.iter().zip(&with).zip(&without) {
+        assert!(o.voxel.is_none() && w.voxel.is_some(), "{id:?}");
+        assert_eq!(o.area, w.area, "{id:?}: the area is kept");
+        if Some(*id) == tree.root() {
+            // The diagonals are cast the same way; the faces at the base count only.
+            assert_eq!(o.proxy_samples[6..], w.proxy_samples[6..]);
+            assert!(o.proxy_samples.iter().all(|s| *s != Sample::EMPTY));
+            refined += usize::from(o.proxy_samples[..6] != w.proxy_samples[..6]);
+        } else {
+            assert!(
+                o.proxy_samples.iter().all(|s| *s == Sample::EMPTY),
+                "{id:?}"
+            );
+        }
+    }
+    assert_eq!(refined, 1, "the root's faces are refined only with voxels");
 }
 
 #[test]

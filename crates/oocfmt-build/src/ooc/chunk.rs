@@ -340,10 +340,11 @@ pub(super) fn count_treelet(plan: &TreePlan, t: usize, counts: &mut ChunkCounts)
             Role::Leaf => counts.leaves += 1,
             Role::Lod => {
                 counts.lod_nodes += 1;
-                match plan.lod_data(n).map(|d| d.voxel) {
+                match plan.lod_data(n).and_then(|d| d.voxel) {
                     _ if !plan.kinds.voxel => {}
                     Some(Voxel::Six(..)) => counts.voxels_six += 1,
-                    _ => counts.voxels_single += 1,
+                    Some(Voxel::Single(..)) => counts.voxels_single += 1,
+                    None => {}
                 }
             }
         }

@@ -134,7 +134,7 @@ fn sampling_in_pieces_matches_sampling_the_whole() {
     assert_eq!(pieces, whole);
     // And it is the hull's green, not the cargo's yellow, from every side; the hull's part.
     assert_eq!(pieces.part, 1);
-    let Voxel::Six(faces, _) = pieces.voxel else {
+    let Voxel::Six(faces, _) = pieces.sampled_voxel() else {
         panic!("{:?}", pieces.voxel)
     };
     for f in faces {
