@@ -92,7 +92,7 @@ pub struct LodData {
     pub area: f32,
     /// The part the entry stands for (its part word when the file has `PART_IDS`): the part
     /// most face rays hit; without hits, or for an R-LOD-only entry, the part of the largest
-    /// triangle area in the cell. 0 in a scene without part ids, and from [`compute_in`]
+    /// triangle area in the cell. 0 in a scene without part ids, and from `compute_in`
     /// without voxels (the planner takes the R-LOD's part then).
     pub part: u32,
 }
