@@ -140,6 +140,7 @@ impl Camera {
 impl Frame {
     /// The primary ray of pixel (x, y), with a unit direction: through its centre, or through
     /// its sample point when the frame is [`Frame::aimed`] at one.
+    #[inline]
     pub fn ray(&self, x: u32, y: u32) -> Ray {
         let [ox, oy] = match self.aim {
             Aim::Centre => [0.5, 0.5],
@@ -162,6 +163,7 @@ impl Frame {
 
     /// The primary ray through the point (px, py) of the image plane, in pixels from the top
     /// left corner (pixel (x, y) covers [x, x + 1) × [y, y + 1)), with a unit direction.
+    #[inline]
     pub fn ray_at(&self, px: f64, py: f64) -> Ray {
         // The point on the image plane at distance 1, in pixels from the image's centre (exact
         // for pixel centres: halves of integers), then scaled: the centre pixel of an

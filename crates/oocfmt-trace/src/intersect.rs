@@ -34,6 +34,7 @@ pub struct TriHit {
 
 impl Ray {
     /// A ray; `dir` need not be normalised but must have a non-zero finite component.
+    #[inline]
     pub fn new(org: [f32; 3], dir: [f32; 3]) -> Ray {
         let kz = major_axis(dir);
         let mut kx = (kz + 1) % 3;
@@ -172,6 +173,7 @@ impl Ray {
 }
 
 /// The axis of the largest |component| (the lowest such axis on ties).
+#[inline]
 pub fn major_axis(d: [f32; 3]) -> usize {
     let a = d.map(f32::abs);
     if a[0] >= a[1] && a[0] >= a[2] {

@@ -491,6 +491,16 @@ impl Clip {
     fn clip(&mut self, tri: [[f64; 3]; 3], lo: [f64; 3], hi: [f64; 3]) {
         self.out.clear();
         self.out.extend_from_slice(&tri);
+        // A triangle inside the box would come out of every pass as it went in, vertex for
+        // vertex and in order: most of a cell's triangles, so the passes are skipped.
+        let inside = |v: &[f64; 3]| (0..3).all(|k| v[k] >= lo[k] && v[k] <= hi[k]);
+        if !tri.iter().all(inside) {
+            self.passes(lo, hi);
+        }
+    }
+
+    /// The six Sutherland–Hodgman passes over `out`, one per face of the box.
+    fn passes(&mut self, lo: [f64; 3], hi: [f64; 3]) {
         for k in 0..3 {
             for (bound, keep_below) in [(lo[k], false), (hi[k], true)] {
                 std::mem::swap(&mut self.out, &mut self.tmp);
@@ -693,6 +703,44 @@ mod tests {
             fit.normal
         );
         assert!(fit.normal[2] > 0.0, "faces the way the triangles do");
+    }
+
+    /// The shortcut for a triangle inside the box gives the passes' own output, bit for bit:
+    /// checked on triangles inside (hundreds of them), straddling and outside, corners on faces.
+    #[test]
+    fn clipping_a_triangle_inside_the_box_without_the_passes_gives_their_result() {
+        let (lo, hi) = ([-1.0, -0.5, 0.0], [1.0, 0.5, 2.0]);
+        let mut rng = Rng(11);
+        let mut kept = 0;
+        for n in 0..2000 {
+            let spread = [0.9, 1.3, 3.0][n % 3];
+            let tri: [[f64; 3]; 3] = std::array::from_fn(|_| {
+                std::array::from_fn(|k| {
+                    let c = (lo[k] + hi[k]) / 2.0;
+                    let h = (hi[k] - lo[k]) / 2.0 * spread;
+                    if rng.chance(0.05) {
+                        if rng.chance(0.5) {
+                            lo[k]
+                        } else {
+                            hi[k]
+                        }
+                    } else {
+                        c + rng.range(-h, h)
+                    }
+                })
+            });
+            let mut fast = Clip::default();
+            fast.clip(tri, lo, hi);
+            let mut slow = Clip::default();
+            slow.out.extend_from_slice(&tri);
+            slow.passes(lo, hi);
+            assert_eq!(fast.out, slow.out, "triangle {n}: {tri:?}");
+            kept += usize::from(fast.out[..] == tri[..]);
+        }
+        assert!(
+            kept > 300,
+            "{kept} triangles inside: the shortcut was hardly tried"
+        );
     }
 
     #[test]
