@@ -25,13 +25,22 @@ same frame): the 50th and 95th percentile and the largest; beside it the warm ru
 each warm frame over the median of the other warm runs' same frame (the machine's noise,
 measured where nothing is read); the bound, 95th percentile of the cold ratios <= 1.5; the
 render-thread waits on I/O per frame (`waits` of the per-frame figures: 0 in every frame of the
-async cache); the peak resident set of the processes (the decoded blocks, the proxies, and for
+async cache); the share of surface rays drawn on a proxy because their block was not resident
+(what the async cache shows instead of waiting) and the blocks a cold run loads; the peak resident set of the processes (the decoded blocks, the proxies, and for
 mmap the mapped pages touched) and the bytes of the model in the page cache after a cold run
 (`fincore`, where installed). Standard library only.
+
+--memory-limit-mb M runs every render process in a memory control group (cgroup v2
+`memory.max`, or v1 `memory.limit_in_bytes`; needs root) holding at most M MiB of the process's
+memory and of the page cache it fills, so a model larger than M is larger than the memory the
+renderer has, on a machine with more RAM than the model: the page cache cannot keep the file, and
+mmap pages it in and out again. The script makes the group and removes it at the end.
 
     cargo build --release -p oocfmt-cli
     python3 tools/bench-cold.py --tris 1e6
     python3 tools/bench-cold.py --model big.oocf --mmap-model big-none.oocf --poe 3 --cache-mb 4096
+    python3 tools/bench-cold.py --model big.oocf --mmap-model big-none.oocf --cache-mb 256 \
+        --memory-limit-mb 768
 """
 
 import argparse
@@ -87,6 +96,50 @@ def cached_bytes(path):
         return None
 
 
+class MemoryGroup:
+    """A memory control group of `limit_mb` MiB that the render processes join (see the module
+    text); None-like when no limit is asked for."""
+
+    def __init__(self, limit_mb):
+        self.path = None
+        if limit_mb is None:
+            return
+        name = f"oocfmt-bench-cold-{os.getpid()}"
+        v2 = os.path.exists("/sys/fs/cgroup/cgroup.controllers")
+        base = "/sys/fs/cgroup" if v2 else "/sys/fs/cgroup/memory"
+        limit_file = "memory.max" if v2 else "memory.limit_in_bytes"
+        path = os.path.join(base, name)
+        try:
+            os.mkdir(path)
+            with open(os.path.join(path, limit_file), "w") as f:
+                f.write(str(limit_mb * 2**20))
+        except OSError as e:
+            if os.path.isdir(path):
+                os.rmdir(path)
+            raise SystemExit(f"--memory-limit-mb: cannot make the memory group {path}: {e} "
+                             "(it needs root and a mounted memory controller)")
+        self.path = path
+
+    def join(self):
+        """Moves the calling process into the group (a Popen preexec_fn)."""
+        if self.path is not None:
+            with open(os.path.join(self.path, "cgroup.procs"), "w") as f:
+                f.write(str(os.getpid()))
+
+    def close(self):
+        if self.path is None:
+            return
+        empty = os.path.join(self.path, "memory.force_empty")
+        if os.path.exists(empty):
+            with open(empty, "w") as f:
+                f.write("0")
+        os.rmdir(self.path)
+        self.path = None
+
+
+GROUP = MemoryGroup(None)
+
+
 def walk(model, cams, work, name, flags):
     """Renders `cams` as one walkthrough in a fresh process; returns its per-frame figures and
     the process's peak resident set in MiB. Its PNGs are deleted at once, so they do not fill
@@ -97,7 +150,8 @@ def walk(model, cams, work, name, flags):
     stats = os.path.join(work, f"{name}-stats.json")
     args = ["render", model, "-o", os.path.join(work, f"{name}.png"), "--path", path,
             "--stats-json", stats] + flags
-    p = subprocess.Popen([BIN] + args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen([BIN] + args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=GROUP.join)
     err = p.stderr.read() if p.stderr else ""
     _, status, usage = os.wait4(p.pid, 0)
     if os.waitstatus_to_exitcode(status) != 0:
@@ -113,6 +167,14 @@ def walk(model, cams, work, name, flags):
 
 def total(f):
     return f["ms"] + f["step_ms"]
+
+
+def coarse(f):
+    """The share of a frame's surface rays that ended on a proxy: their block was not resident
+    (the async cache draws the proxy instead of waiting; 0 for a cache that waits)."""
+    e = f["stats"].get("primary", {})
+    surface = sum(e.get(k, 0) for k in ("triangle", "voxel", "rlod", "proxy"))
+    return e.get("proxy", 0) / surface if surface else 0.0
 
 
 def pct(values, q):
@@ -154,6 +216,8 @@ def measure(name, a, model, cams, work, method, common):
         for i in range(frames):
             noise.append(total(w[i]) / statistics.median(total(o[i]) for o in others))
     cold_waits = [f.get("waits", 0) for c in colds for f in c]
+    cold_coarse = [coarse(f) for c in colds for f in c]
+    warm_coarse = [coarse(f) for w in warms for f in w]
     warm_waits = [f.get("waits", 0) for w in warms for f in w]
     io = colds[0][0]["stats"]["cache"].get("io", "?")
     mode = colds[0][0]["stats"]["cache"]["mode"]
@@ -172,6 +236,10 @@ def measure(name, a, model, cams, work, method, common):
         "cold_waits_per_frame_max": max(cold_waits),
         "cold_frames_waiting": sum(w > 0 for w in cold_waits),
         "warm_waits_max": max(warm_waits),
+        "cold_proxy_share_median": statistics.median(cold_coarse),
+        "cold_proxy_share_max": max(cold_coarse),
+        "warm_proxy_share_median": statistics.median(warm_coarse),
+        "cold_blocks_loaded": statistics.median(c[-1]["stats"]["cache"]["blocks_loaded"] for c in colds),
         "cold_rss_mib": statistics.median(cold_rss),
         "cold_rss_max_mib": max(cold_rss),
         "warm_rss_mib": statistics.median(warm_rss),
@@ -191,6 +259,10 @@ def measure(name, a, model, cams, work, method, common):
           f"waited (warm frames: max {res['warm_waits_max']}); peak RSS cold {res['cold_rss_mib']:.0f} MiB "
           f"(max {res['cold_rss_max_mib']:.0f}), warm {res['warm_rss_mib']:.0f} MiB; decoded blocks peak "
           f"{res['peak_decoded_mib']:.1f} MiB cold, {res['warm_peak_decoded_mib']:.1f} MiB warm{cache_line}")
+    print(f"{'':>8} rays drawn on a proxy (block not resident): median {100 * res['cold_proxy_share_median']:.2f} % "
+          f"of a cold frame's surface rays (most {100 * res['cold_proxy_share_max']:.2f} %), "
+          f"{100 * res['warm_proxy_share_median']:.2f} % warm; blocks loaded in a cold run "
+          f"{res['cold_blocks_loaded']:.0f} (median)")
     return res
 
 
@@ -230,6 +302,8 @@ def main():
     p.add_argument("--evict", choices=["auto", "drop", "fadvise"], default="auto",
                    help="how a cold run empties the page cache (see above)")
     p.add_argument("--render-args", default="", help="more `oocfmt render` flags for every run")
+    p.add_argument("--memory-limit-mb", type=int,
+                   help="run the renders in a memory group of this many MiB (see above)")
     p.add_argument("--json", help="also write the figures to this file")
     p.add_argument("--dir", default=os.path.join(ROOT, "target", "bench-cold"))
     a = p.parse_args()
@@ -254,23 +328,31 @@ def main():
     hi = [o + v for o, v in zip(origin, scene["bounds_max"])]
     cams = path_cameras(lo, hi, a.frames)
     cams += [cams[-1]] * a.hold
+    global GROUP
+    GROUP = MemoryGroup(a.memory_limit_mb)
     common = ["--size", a.size, "--poe", a.poe, "--cache-mb", str(a.cache_mb)] + a.render_args.split()
     print(f"machine: {machine()}")
     print(f"model {model} ({os.path.getsize(model) / 2**20:.1f} MiB); {a.frames} frames + {a.hold} still, "
           f"{a.size}, --poe {a.poe}, --cache-mb {a.cache_mb}; {a.runs} cold and {a.runs} warm runs per "
           f"configuration, alternating; cold: "
           + ("the page cache emptied (drop_caches)" if method == "drop"
-             else "the model's clean pages dropped (posix_fadvise DONTNEED)"))
+             else "the model's clean pages dropped (posix_fadvise DONTNEED)")
+          + (f"; every render in a memory group of {a.memory_limit_mb} MiB (process and page cache)"
+             if a.memory_limit_mb else ""))
     print("ratios: p50 / p95 / max; cold: each cold frame over the warm runs' median of that frame; "
           "warm spread: each warm frame over the other warm runs' median")
     results = []
-    with tempfile.TemporaryDirectory(dir=a.dir) as work:
-        for n in names:
-            results.append(measure(n, a, plain if CONFIGS[n][1] else model, cams, work, method, common))
+    try:
+        with tempfile.TemporaryDirectory(dir=a.dir) as work:
+            for n in names:
+                results.append(measure(n, a, plain if CONFIGS[n][1] else model, cams, work, method, common))
+    finally:
+        GROUP.close()
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"model": model, "evict": method, "runs": a.runs, "frames": len(cams),
-                       "size": a.size, "poe": a.poe, "cache_mb": a.cache_mb, "results": results}, f, indent=1)
+                       "size": a.size, "poe": a.poe, "cache_mb": a.cache_mb,
+                       "memory_limit_mb": a.memory_limit_mb, "results": results}, f, indent=1)
 
 
 if __name__ == "__main__":

@@ -13,7 +13,7 @@ use crate::layout::{build_blocks, write_blocks, LayoutError, LayoutOptions};
 use crate::ooc::soup::{finish_soup, soup_sink, Soup};
 use crate::ooc::{self, OocError};
 use crate::progress::Progress;
-use crate::report::{peak_memory, BlockStats, ConvertReport, PhaseTime};
+use crate::report::{peak_memory, BlockStats, ConvertReport, PhaseClock};
 use crate::spill_dir::{self, SpillDir};
 use oocfmt_meshio::import::{self, ImportError, Recentre, TriangleSink};
 
@@ -168,22 +168,6 @@ impl InputFormat {
     }
 }
 
-struct Phases {
-    list: Vec<PhaseTime>,
-    at: Instant,
-}
-
-impl Phases {
-    fn done(&mut self, phase: &str) {
-        let now = Instant::now();
-        self.list.push(PhaseTime {
-            phase: phase.to_string(),
-            seconds: (now - self.at).as_secs_f64(),
-        });
-        self.at = now;
-    }
-}
-
 /// Imports `inputs` into one scene and writes the container `output`; an input [`STDIN`]
 /// (`-`) is read from standard input. A failure or an interruption leaves no file under
 /// `output` and never touches an existing one (the writer renames a finished file into
@@ -292,10 +276,7 @@ fn run_convert(
         spill,
         estimate,
     } = run;
-    let mut phases = Phases {
-        list: Vec::new(),
-        at: start,
-    };
+    let mut phases = PhaseClock::new(start);
     // `--recentre auto` first reads the positions alone, for their bounds.
     let scan = opts.recentre.needs_scan();
     if scan {
@@ -334,18 +315,20 @@ fn run_convert(
             output,
             &opts.kd,
             &layout,
-            chunk_triangles,
-            spill,
+            ooc::Chunking {
+                chunk_triangles,
+                dir: spill,
+            },
+            &mut phases,
             progress,
         )?;
-        phases.done("out-of-core build");
         (written, Some(stats))
     };
 
     let mut report = describe(output, written.identity)?;
     report.import = import_report;
     report.out_of_core = out_of_core;
-    report.phases = phases.list;
+    report.phases = phases.into_list();
     report.seconds = start.elapsed().as_secs_f64();
     report.triangles_per_second = report.import.triangles_in as f64 / report.seconds.max(1e-9);
     report.peak_memory_bytes = peak_memory();
@@ -399,7 +382,7 @@ fn build_in_core(
     output: &Path,
     kd: &KdBuildOptions,
     layout: &LayoutOptions,
-    phases: &mut Phases,
+    phases: &mut PhaseClock,
     progress: &mut dyn Progress,
 ) -> Result<WriteSummary, ConvertError> {
     let mesh = soup.into_mesh()?;

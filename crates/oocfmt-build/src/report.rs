@@ -2,6 +2,7 @@
 //! for `--report-json`. Every figure the converter prints comes from here.
 
 use std::collections::BTreeMap;
+use std::time::Instant;
 
 use serde::Serialize;
 
@@ -10,11 +11,42 @@ use oocfmt_meshio::import::ImportReport;
 /// Wall time of one conversion phase.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct PhaseTime {
-    /// The phase: `bounds`, `import`, `load`, `kd-tree`, `lod+layout`, `write` or
-    /// `out-of-core build`.
+    /// The phase: `bounds`, `import`, then in core `load`, `kd-tree`, `lod+layout`, `write`,
+    /// or out of core `split`, `chunks`, `top`, `write`.
     pub phase: String,
     /// Seconds of wall time from the end of the previous phase to the end of this one.
     pub seconds: f64,
+}
+
+/// Times the phases of one conversion, each from the end of the one before.
+pub(crate) struct PhaseClock {
+    list: Vec<PhaseTime>,
+    at: Instant,
+}
+
+impl PhaseClock {
+    /// A clock whose first phase starts at `start`.
+    pub(crate) fn new(start: Instant) -> PhaseClock {
+        PhaseClock {
+            list: Vec::new(),
+            at: start,
+        }
+    }
+
+    /// The phase `phase` ends now.
+    pub(crate) fn done(&mut self, phase: &str) {
+        let now = Instant::now();
+        self.list.push(PhaseTime {
+            phase: phase.to_string(),
+            seconds: (now - self.at).as_secs_f64(),
+        });
+        self.at = now;
+    }
+
+    /// The phases timed, in the order they ran.
+    pub(crate) fn into_list(self) -> Vec<PhaseTime> {
+        self.list
+    }
 }
 
 /// Totals over the blocks of one kind in the written file.

@@ -20,11 +20,13 @@ impl Bounds {
     };
 
     /// True when the box holds no point (`min > max` on some axis).
+    #[inline]
     pub fn is_empty(&self) -> bool {
         (0..3).any(|a| self.min[a] > self.max[a])
     }
 
     /// Grows the box to hold `p`.
+    #[inline]
     pub fn extend(&mut self, p: [f32; 3]) {
         for ((lo, hi), c) in self.min.iter_mut().zip(&mut self.max).zip(p) {
             *lo = lo.min(c);
@@ -33,6 +35,7 @@ impl Bounds {
     }
 
     /// The smallest box holding every point of `points` ([`Bounds::EMPTY`] for none).
+    #[inline]
     pub fn of_points(points: &[[f32; 3]]) -> Bounds {
         let mut b = Bounds::EMPTY;
         for &p in points {

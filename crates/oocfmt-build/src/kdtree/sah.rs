@@ -105,12 +105,7 @@ impl<'a> Builder<'a> {
         let Some(c) = self.mesh.corners(tri as usize) else {
             return *to;
         };
-        let b = Bounds::of_points(&c);
-        if (0..3).all(|a| to.min[a] <= b.min[a] && b.max[a] <= to.max[a]) {
-            b
-        } else {
-            clip_triangle(c, to)
-        }
+        clip_triangle(c, to)
     }
 
     /// The subtree of `job` as pieces: the parallel part is joined once, at the end, instead
@@ -567,6 +562,17 @@ const MAX_CLIPPED: usize = 9;
 /// box, or vanishes under rounding, gets the part of its own box inside `to` instead: never an
 /// empty box, so a reference is never lost.
 pub(crate) fn clip_triangle(c: [[f32; 3]; 3], to: &Bounds) -> Bounds {
+    // Inside the box, no plane cuts it and the passes would give its own box back: the
+    // common case of the out-of-core split passes, which place every triangle of a cell.
+    let own = Bounds::of_points(&c);
+    if (0..3).all(|a| to.min[a] <= own.min[a] && own.max[a] <= to.max[a]) {
+        return own;
+    }
+    clip_passes(c, to)
+}
+
+/// [`clip_triangle`] by its six Sutherland–Hodgman passes, whatever the triangle.
+fn clip_passes(c: [[f32; 3]; 3], to: &Bounds) -> Bounds {
     let mut poly = [[0.0f64; 3]; MAX_CLIPPED];
     for (slot, p) in poly.iter_mut().zip(&c) {
         *slot = p.map(f64::from);
@@ -826,5 +832,46 @@ mod tests {
         let c = [[0.0, 0.0, 0.0], [3.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
         let b = clip_triangle(c, &to([1.0, 0.0, -1.0], [3.0, 1.0, 1.0]));
         assert!(f64::from(b.min[1]) <= 1.0 / 3.0 && f64::from(b.min[1]) > 0.3333);
+    }
+
+    #[test]
+    fn a_triangle_inside_the_box_gets_the_bounds_the_passes_give() {
+        // A small linear congruential generator: the same triangles every run.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut unit = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let to = Bounds {
+            min: [-1.0, -0.5, 0.0],
+            max: [1.0, 0.5, 2.0],
+        };
+        let mut inside = 0;
+        for n in 0..3000 {
+            let spread = [0.9f32, 1.3, 3.0][n % 3];
+            let c: [[f32; 3]; 3] = std::array::from_fn(|_| {
+                std::array::from_fn(|k| {
+                    let (lo, hi) = (to.min[k], to.max[k]);
+                    match unit() {
+                        u if u < 0.03 => lo,
+                        u if u < 0.06 => hi,
+                        _ => (lo + hi) / 2.0 + (unit() - 0.5) * (hi - lo) * spread,
+                    }
+                })
+            });
+            let (fast, slow) = (clip_triangle(c, &to), clip_passes(c, &to));
+            assert_eq!(
+                (fast.min, fast.max),
+                (slow.min, slow.max),
+                "triangle {n}: {c:?}"
+            );
+            inside += usize::from(fast == Bounds::of_points(&c));
+        }
+        assert!(
+            inside > 400,
+            "{inside} triangles inside: the shortcut was hardly tried"
+        );
     }
 }

@@ -297,23 +297,39 @@ impl ChunkBuilder<'_> {
     }
 }
 
+/// Triangles a worker measures against a plane at a time in [`plane_pieces`]: a fixed size, so
+/// the pieces and the order they are combined in do not depend on the thread count.
+const DEVIATION_RUN: usize = 1 << 14;
+
 /// The deviation of the chunk's surface from each R-LOD plane of the top LOD nodes above it.
-/// The chunk's cell lies inside each top node's cell, and the chunks partition it.
+/// The chunk's cell lies inside each top node's cell, and the chunks partition it. The
+/// triangles are measured in runs in parallel (a chunk has one to a few such planes) and the
+/// runs' pieces combined in order.
 fn plane_pieces(
     mesh: &Mesh,
     chunk: &Chunk,
     planes: &[(usize, PlaneFit)],
 ) -> Vec<(usize, PlaneFit)> {
+    let n = mesh.triangles.len();
+    let starts: Vec<usize> = (0..n).step_by(DEVIATION_RUN).collect();
     planes
-        .par_iter()
+        .iter()
         .map(|(node, plane)| {
-            let mut d = Deviation::new(plane, chunk.cell);
-            for t in 0..mesh.triangles.len() {
-                if let Some(c) = mesh.corners(t) {
-                    d.add(c);
+            let measure = |&start: &usize| {
+                let mut d = Deviation::new(plane, chunk.cell);
+                for t in start..(start + DEVIATION_RUN).min(n) {
+                    if let Some(c) = mesh.corners(t) {
+                        d.add(c);
+                    }
                 }
+                d.finish()
+            };
+            let runs: Vec<PlaneFit> = starts.par_iter().map(measure).collect();
+            let mut whole = Deviation::new(plane, chunk.cell).finish();
+            for r in &runs {
+                whole.widen(r);
             }
-            (*node, d.finish())
+            (*node, whole)
         })
         .collect()
 }

@@ -41,6 +41,7 @@ use crate::layout::{LayoutError, LayoutOptions, RawBlock};
 use crate::lod::rlod::PlaneFit;
 use crate::lod::LodData;
 use crate::progress::Progress;
+use crate::report::PhaseClock;
 use chunk::{BlockSpill, ChunkBuilder, ChunkCounts, ChunkOut, SceneFacts};
 use oocfmt_meshio::import::{compact_materials, ChunkSchema, InputTriangle};
 use soup::Soup;
@@ -160,22 +161,32 @@ pub struct OocStats {
     pub top_lod_nodes: u64,
 }
 
-/// Builds the container at `output` from the spill run of `soup`, holding at most about
-/// `chunk_triangles` triangles in memory at once. Spill files go to `dir`; each pass frees
-/// its input as it reads it, and `soup.disk` counts what they take.
-pub fn build(
+/// How an out-of-core build cuts and spills the scene.
+pub(crate) struct Chunking<'a> {
+    /// Most triangles (about) held in memory at once.
+    pub chunk_triangles: u64,
+    /// The folder of the spill files.
+    pub dir: &'a Path,
+}
+
+/// Builds the container at `output` from the spill run of `soup`, as `chunking` says. Each
+/// pass frees its input as it reads it, and `soup.disk` counts what the spill files take.
+/// `clock` times the phases.
+pub(crate) fn build(
     soup: Soup,
     output: &Path,
     kd: &KdBuildOptions,
     layout: &LayoutOptions,
-    chunk_triangles: u64,
-    dir: &Path,
+    chunking: Chunking,
+    clock: &mut PhaseClock,
     progress: &mut dyn Progress,
 ) -> Result<(WriteSummary, OocStats), OocError> {
-    let b = OocBuild::new(&soup, kd, layout, chunk_triangles, dir)?;
+    let b = OocBuild::new(&soup, kd, layout, chunking.chunk_triangles, chunking.dir)?;
     let mut tree = b.split(progress)?;
+    clock.done("split");
     let planes = std::mem::take(&mut tree.planes);
     let mut chunks = b.build_chunks(&tree, planes, progress)?;
+    clock.done("chunks");
     let given = b.top_lod_data(&tree, &chunks)?;
     let mut top = b.plan_top(&tree, &chunks, &given)?;
     top.assign_final_ids()?;
@@ -184,6 +195,7 @@ pub fn build(
     let (counts, stats) = b.tally(&tree, &chunks, &top);
     let mut metadata = b.metadata(&counts, &top.order, proxies.len(), &stats);
     metadata.parts = b.part_table(&chunks);
+    clock.done("top");
     let summary = assemble::write(
         output,
         layout.write,
@@ -198,6 +210,7 @@ pub fn build(
         &metadata,
         progress,
     )?;
+    clock.done("write");
     Ok((summary, stats))
 }
 

@@ -8,7 +8,10 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use super::disk::SpillDisk;
+use super::record::SoupTriangle;
 use super::segments::Run;
 use super::soup::{SoupReader, SoupWriter};
 use super::OocError;
@@ -67,10 +70,14 @@ pub struct RlodMoments<'a> {
 }
 
 /// A triangle's linear RGB, as the in-core fit sees it.
-pub type TriangleColour<'a> = &'a dyn Fn(&InputTriangle) -> [f64; 3];
+pub type TriangleColour<'a> = &'a (dyn Fn(&InputTriangle) -> [f64; 3] + Sync);
 
 /// A triangle's scene part id, as the in-core mesh numbers it.
-pub type TrianglePart<'a> = &'a dyn Fn(&InputTriangle) -> Option<u32>;
+pub type TrianglePart<'a> = &'a (dyn Fn(&InputTriangle) -> Option<u32> + Sync);
+
+/// Records a split pass reads before placing them, while another thread adds them to the
+/// R-LOD moments.
+const SPLIT_BATCH: usize = 1 << 15;
 
 /// Deepest median split: leaves the in-core builds room under the format's 128 levels.
 pub const MAX_SPLIT_DEPTH: u32 = 48;
@@ -246,6 +253,30 @@ impl TopTree {
     }
 }
 
+/// Records one task of a split pass places at a time.
+const SIDES_RUN: usize = 1 << 12;
+
+/// The sides of a cut a record's part inside the cell reaches, and the side of its centroid.
+struct Sides {
+    left: bool,
+    right: bool,
+    owner_left: bool,
+}
+
+impl Sides {
+    fn of(t: &SoupTriangle, cut: &Cut) -> Sides {
+        let (axis, mid) = (cut.axis, cut.mid);
+        let part = clip_triangle(t.triangle.positions, &cut.cell);
+        let (pmin, pmax) = (part.min[axis], part.max[axis]);
+        let in_plane = pmin == mid && pmax == mid;
+        Sides {
+            left: pmin < mid || in_plane,
+            right: pmax > mid || in_plane,
+            owner_left: t.centroid()[axis] <= mid,
+        }
+    }
+}
+
 /// One streaming pass, consuming `p`'s run: every record to the side(s) of the `cut` its
 /// clipped part reaches, and into `moments` when given. The sides' runs are named after pass
 /// `id`.
@@ -256,31 +287,51 @@ fn split_run(
     id: usize,
     mut moments: Option<&mut (PlaneMoments, &RlodMoments)>,
 ) -> Result<[Run; 2], OocError> {
-    let (axis, mid) = (cut.axis, cut.mid);
     let mut left = SoupWriter::create(&to.dir.join(format!("p{id}-l.soup")), to.disk.clone());
     let mut right = SoupWriter::create(&to.dir.join(format!("p{id}-r.soup")), to.disk.clone());
-    for record in SoupReader::open(&p.run, true, to.disk.clone()) {
-        let t = record?;
-        if let Some((m, r)) = moments.as_deref_mut() {
-            m.add(t.triangle.positions, (r.part)(&t.triangle), || {
-                (r.colour)(&t.triangle)
-            });
+    let mut reader = SoupReader::open(&p.run, true, to.disk.clone());
+    let mut batch = Vec::with_capacity(SPLIT_BATCH);
+    loop {
+        batch.clear();
+        for record in reader.by_ref().take(SPLIT_BATCH) {
+            batch.push(record?);
         }
-        let part = clip_triangle(t.triangle.positions, &cut.cell);
-        let (pmin, pmax) = (part.min[axis], part.max[axis]);
-        let in_plane = pmin == mid && pmax == mid;
-        let goes_left = pmin < mid || in_plane;
-        let goes_right = pmax > mid || in_plane;
-        let owner_left = t.centroid()[axis] <= mid;
-        if goes_left {
-            let mut c = t;
-            c.primary = t.primary && (owner_left || !goes_right);
-            left.push(&c)?;
+        if batch.is_empty() {
+            break;
         }
-        if goes_right {
-            let mut c = t;
-            c.primary = t.primary && (!owner_left || !goes_left);
-            right.push(&c)?;
+        // Where each record goes, decided in parallel: clipping is most of a pass's work.
+        let sides = || -> Vec<Sides> {
+            batch
+                .par_chunks(SIDES_RUN)
+                .flat_map_iter(|run| run.iter().map(|t| Sides::of(t, cut)))
+                .collect()
+        };
+        // The moments take the batch in order on another thread meanwhile: the same sums,
+        // bit for bit, as one thread gives.
+        let sides = match moments.as_deref_mut() {
+            Some((m, r)) => {
+                let add = || {
+                    for t in &batch {
+                        m.add(t.triangle.positions, (r.part)(&t.triangle), || {
+                            (r.colour)(&t.triangle)
+                        });
+                    }
+                };
+                rayon::join(add, sides).1
+            }
+            None => sides(),
+        };
+        for (&t, s) in batch.iter().zip(&sides) {
+            if s.left {
+                let mut c = t;
+                c.primary = t.primary && (s.owner_left || !s.right);
+                left.push(&c)?;
+            }
+            if s.right {
+                let mut c = t;
+                c.primary = t.primary && (!s.owner_left || !s.left);
+                right.push(&c)?;
+            }
         }
     }
     Ok([left.finish()?, right.finish()?])
