@@ -26,8 +26,9 @@ each warm frame over the median of the other warm runs' same frame (the machine'
 measured where nothing is read); the bound, 95th percentile of the cold ratios <= 1.5; the
 render-thread waits on I/O per frame (`waits` of the per-frame figures: 0 in every frame of the
 async cache); the share of surface rays drawn on a proxy because their block was not resident
-(what the async cache shows instead of waiting) and the blocks a cold run loads; the peak resident set of the processes (the decoded blocks, the proxies, and for
-mmap the mapped pages touched) and the bytes of the model in the page cache after a cold run
+(what the async cache shows instead of waiting) and the blocks a cold run loads; the peak
+resident set of the processes (the decoded blocks, the proxies, and for mmap the mapped pages
+touched) and the bytes of the model in the page cache after a cold run
 (`fincore`, where installed). Standard library only.
 
 --memory-limit-mb M runs every render process in a memory control group (cgroup v2
@@ -169,7 +170,7 @@ def total(f):
     return f["ms"] + f["step_ms"]
 
 
-def coarse(f):
+def proxy_share(f):
     """The share of a frame's surface rays that ended on a proxy: their block was not resident
     (the async cache draws the proxy instead of waiting; 0 for a cache that waits)."""
     e = f["stats"].get("primary", {})
@@ -216,8 +217,8 @@ def measure(name, a, model, cams, work, method, common):
         for i in range(frames):
             noise.append(total(w[i]) / statistics.median(total(o[i]) for o in others))
     cold_waits = [f.get("waits", 0) for c in colds for f in c]
-    cold_coarse = [coarse(f) for c in colds for f in c]
-    warm_coarse = [coarse(f) for w in warms for f in w]
+    cold_proxy = [proxy_share(f) for c in colds for f in c]
+    warm_proxy = [proxy_share(f) for w in warms for f in w]
     warm_waits = [f.get("waits", 0) for w in warms for f in w]
     io = colds[0][0]["stats"]["cache"].get("io", "?")
     mode = colds[0][0]["stats"]["cache"]["mode"]
@@ -236,9 +237,9 @@ def measure(name, a, model, cams, work, method, common):
         "cold_waits_per_frame_max": max(cold_waits),
         "cold_frames_waiting": sum(w > 0 for w in cold_waits),
         "warm_waits_max": max(warm_waits),
-        "cold_proxy_share_median": statistics.median(cold_coarse),
-        "cold_proxy_share_max": max(cold_coarse),
-        "warm_proxy_share_median": statistics.median(warm_coarse),
+        "cold_proxy_share_median": statistics.median(cold_proxy),
+        "cold_proxy_share_max": max(cold_proxy),
+        "warm_proxy_share_median": statistics.median(warm_proxy),
         "cold_blocks_loaded": statistics.median(c[-1]["stats"]["cache"]["blocks_loaded"] for c in colds),
         "cold_rss_mib": statistics.median(cold_rss),
         "cold_rss_max_mib": max(cold_rss),
@@ -312,6 +313,8 @@ def main():
     for n in names:
         if n not in CONFIGS:
             raise SystemExit(f"--configs: unknown `{n}` (expected {', '.join(CONFIGS)})")
+    if a.memory_limit_mb is not None and a.memory_limit_mb < 64:
+        raise SystemExit("--memory-limit-mb: at least 64 (the renderer itself needs more)")
     if a.runs < 2:
         raise SystemExit("--runs: at least 2 (a warm run's spread is measured against the others)")
     model, plain = generated(a)
