@@ -1,7 +1,7 @@
 //! End-to-end tests of the `oocfmt` binary, one test binary: exit codes and outputs (`cli`),
 //! docs/cli.md against `--help` (`cli_docs`), `curve`, golden build statistics, `--recentre`,
 //! `render`, R-LODs, STL and PLY (`formats`), parts and `view`; models through a pipe
-//! (`stdin`) and interrupted conversions (`interrupt`).
+//! (`stdin`), interrupted conversions (`interrupt`) and split builds (`subsets`).
 
 mod cli;
 mod cli_docs;
@@ -17,4 +17,5 @@ mod render;
 mod rlod;
 mod section;
 mod stdin;
+mod subsets;
 mod view;

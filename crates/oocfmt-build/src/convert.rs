@@ -238,7 +238,7 @@ fn check_stdin(inputs: &[PathBuf], opts: &ConvertOptions) -> Result<(), ConvertE
 }
 
 /// Whether the input `path` stands for standard input.
-fn is_stdin(path: &Path) -> bool {
+pub(crate) fn is_stdin(path: &Path) -> bool {
     path.as_os_str() == STDIN
 }
 
@@ -433,7 +433,7 @@ fn precision_warning(
 
 /// Imports the input `path` (a file, or standard input as [`STDIN`]) into `sink`, in
 /// [`ConvertOptions::format`] or the format its extension names.
-fn import_one(
+pub(crate) fn import_one(
     path: &Path,
     sink: &mut dyn TriangleSink,
     opts: &ConvertOptions,
@@ -479,7 +479,7 @@ fn import_stdin(
 }
 
 /// The report's figures about the written file, read back from it.
-fn describe(output: &Path, identity: u32) -> Result<ConvertReport, ConvertError> {
+pub(crate) fn describe(output: &Path, identity: u32) -> Result<ConvertReport, ConvertError> {
     let reader = Reader::open(output, ReadOptions::default())?;
     let m = reader.metadata();
     let mut report = ConvertReport {

@@ -36,6 +36,7 @@ pub mod progress;
 pub mod raycast;
 pub mod report;
 mod spill_dir;
+pub mod subsets;
 
 pub use convert::{convert, ConvertError, ConvertOptions};
 pub use interrupt::Interrupt;

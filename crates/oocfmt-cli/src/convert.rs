@@ -6,18 +6,13 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
-use oocfmt::records::LodKinds;
-use oocfmt::{Codec, WriteOptions};
-use oocfmt_build::convert::{convert, ConvertError, ConvertOptions, InputFormat, MIN_MEM_LIMIT};
-use oocfmt_build::kdtree::KdBuildOptions;
-use oocfmt_build::layout::LayoutOptions;
-use oocfmt_build::report::{total_memory, ConvertReport};
+use oocfmt_build::convert::{convert, ConvertError};
+use oocfmt_build::report::ConvertReport;
 use oocfmt_build::Interrupt;
-use oocfmt_meshio::import::gltf::GltfOptions;
-use oocfmt_meshio::import::obj::ObjOptions;
-use oocfmt_meshio::import::{Recentre, Skipped};
+use oocfmt_meshio::import::Skipped;
 
-use crate::args::{self, use_threads, LodKindsArg};
+use crate::args::use_threads;
+use crate::build_args::BuildArgs;
 use crate::error::{to_json, CliError, CliResult};
 use crate::out::out;
 use crate::progress::Phases;
@@ -26,56 +21,21 @@ use crate::progress::Phases;
 pub struct Args {
     /// Input files (.obj, .gltf, .glb, .stl, .ply); several become one scene. `-` reads
     /// standard input, which needs --format
-    #[arg(required = true)]
+    #[arg(required_unless_present = "plan", conflicts_with = "plan")]
     pub inputs: Vec<PathBuf>,
-    /// The inputs' format, whatever their names (standard input has none): obj, ply, stl or
-    /// gltf (not from standard input)
-    #[arg(long, value_enum)]
-    pub format: Option<FormatArg>,
-    /// The container to write
+    /// Build from a plan (`oocfmt plan`): its inputs, with its settings. With --subset, only
+    /// that subset, into a subset file for `oocfmt merge`; without, every subset and the
+    /// merge in this process
+    #[arg(long, value_name = "PLAN")]
+    pub plan: Option<PathBuf>,
+    /// With --plan: the subset to build (0 to the plan's subsets - 1)
+    #[arg(long, requires = "plan", value_name = "I")]
+    pub subset: Option<u32>,
+    /// The container to write (with --subset: the subset file, .oocfp)
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Block codec: none, lz4, zstd or zstd:LEVEL (none is what a memory-mapped reader wants)
-    #[arg(long, default_value = "lz4", value_parser = args::parse_codec)]
-    pub codec: Codec,
-    /// Block size in bytes: a power of two from 4096 to 1048576
-    #[arg(long, default_value_t = 65536)]
-    pub block_size: u64,
-    /// Most triangles per kd-tree leaf (1..=4095)
-    #[arg(long, default_value_t = 8)]
-    pub max_leaf: u32,
-    /// Node levels per treelet; every this-many levels holds the LOD voxels
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=8))]
-    pub treelet_height: u8,
-    /// LOD representations to store in the LOD nodes: rlod (planes, Yoon et al. 2006), voxel
-    /// (Áfra 2012) or both, in core or out of core alike
-    #[arg(long, value_enum, default_value = "rlod")]
-    pub lod: LodKindsArg,
-    /// Write opaque, unfiltered LOD records as version 1.1 did (no shade or coverage, spec
-    /// §5.1): for 1.1 readers, and to measure what pre-filtering gains
-    #[arg(long)]
-    pub unfiltered: bool,
-    /// Refuse the first bad triangle (NaN, out-of-range index, zero area) instead of dropping it
-    #[arg(long)]
-    pub strict: bool,
-    /// Memory the build may use, e.g. 2G, 512M, at least 16M (default: half the physical
-    /// memory). A larger scene is built out of core, in chunks that fit
-    #[arg(long, value_parser = parse_mem_limit)]
-    pub mem_limit: Option<u64>,
-    /// Store positions relative to an origin: none (positions exactly as read), auto (near
-    /// the centre of the input's bounds; one more pass over the input, so not with `-`) or
-    /// X,Y,Z. For models far from zero, where f32 positions would lose precision; the report
-    /// gives the error
-    #[arg(
-        long,
-        default_value = "none",
-        value_name = "auto|none|X,Y,Z",
-        allow_hyphen_values = true
-    )]
-    pub recentre: Recentre,
-    /// glTF: import every scene, not only the default one
-    #[arg(long)]
-    pub all_scenes: bool,
+    #[command(flatten)]
+    pub build: BuildArgs,
     /// Also write the report as JSON to this file
     #[arg(long)]
     pub report_json: Option<PathBuf>,
@@ -91,74 +51,12 @@ pub struct Args {
     pub quiet: bool,
 }
 
-/// `--format`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum FormatArg {
-    Obj,
-    Ply,
-    Stl,
-    Gltf,
-}
-
-impl From<FormatArg> for InputFormat {
-    fn from(f: FormatArg) -> InputFormat {
-        match f {
-            FormatArg::Obj => InputFormat::Obj,
-            FormatArg::Ply => InputFormat::Ply,
-            FormatArg::Stl => InputFormat::Stl,
-            FormatArg::Gltf => InputFormat::Gltf,
-        }
-    }
-}
-
-/// A `--mem-limit`: a size of at least [`MIN_MEM_LIMIT`].
-fn parse_mem_limit(s: &str) -> Result<u64, String> {
-    let v = args::parse_byte_size(s)?;
-    if v < MIN_MEM_LIMIT {
-        return Err(format!(
-            "`{s}`: below the minimum of {}M (the importers and one chunk of the out-of-core build need that much)",
-            MIN_MEM_LIMIT >> 20
-        ));
-    }
-    Ok(v)
-}
-
 pub fn run(a: &Args) -> CliResult {
     use_threads(a.threads)?;
-    let write = WriteOptions {
-        codec: a.codec,
-        lod: if a.unfiltered {
-            LodKinds::from(a.lod)
-        } else {
-            LodKinds::from(a.lod).filtered()
-        },
-        ..WriteOptions::default()
+    if let Some(plan) = &a.plan {
+        return crate::subsets::convert_planned(a, plan);
     }
-    .with_block_size(a.block_size)?;
-    let opts = ConvertOptions {
-        layout: LayoutOptions {
-            write,
-            treelet_height: a.treelet_height,
-            ..LayoutOptions::default()
-        },
-        kd: KdBuildOptions {
-            max_leaf_triangles: a.max_leaf,
-            ..KdBuildOptions::default()
-        },
-        strict: a.strict,
-        mem_limit: a
-            .mem_limit
-            .unwrap_or_else(|| total_memory().map_or(4 << 30, |m| m / 2)),
-        obj: ObjOptions::default(),
-        gltf: GltfOptions {
-            all_scenes: a.all_scenes,
-            ..GltfOptions::default()
-        },
-        recentre: a.recentre,
-        tmp_dir: a.tmp_dir.clone(),
-        format: a.format.map(InputFormat::from),
-        interrupt: Interrupt::new(),
-    };
+    let opts = a.build.options(a.tmp_dir.clone())?;
     let signal = on_signals(&opts.interrupt)?;
     let mut progress = Phases::new(a.quiet);
     let report = match convert(&a.inputs, &a.output, &opts, &mut progress) {
@@ -176,20 +74,29 @@ pub fn run(a: &Args) -> CliResult {
         }
         Err(e) => return Err(e.into()),
     };
-    if let Some(path) = &a.report_json {
-        std::fs::write(path, to_json(&report)?).map_err(|e| CliError::Io {
+    write_report_json(a.report_json.as_deref(), &report)?;
+    out!("{}", render(&report))?;
+    Ok(0)
+}
+
+/// Writes `report` as JSON to `path`, when one is given.
+pub fn write_report_json<T: serde::Serialize>(
+    path: Option<&std::path::Path>,
+    report: &T,
+) -> Result<(), CliError> {
+    if let Some(path) = path {
+        std::fs::write(path, to_json(report)?).map_err(|e| CliError::Io {
             path: path.display().to_string(),
             source: e,
         })?;
     }
-    out!("{}", render(&report))?;
-    Ok(0)
+    Ok(())
 }
 
 /// Makes SIGINT and SIGTERM request `interrupt` (the build then stops and cleans up), and a
 /// second one end the process at once with 128 + its number. Returns where the number of the
 /// last signal received is kept (0: none).
-fn on_signals(interrupt: &Interrupt) -> Result<Arc<AtomicUsize>, CliError> {
+pub fn on_signals(interrupt: &Interrupt) -> Result<Arc<AtomicUsize>, CliError> {
     use signal_hook::consts::{SIGINT, SIGTERM};
     use signal_hook::flag;
     let received = Arc::new(AtomicUsize::new(0));
@@ -207,7 +114,7 @@ fn on_signals(interrupt: &Interrupt) -> Result<Arc<AtomicUsize>, CliError> {
     Ok(received)
 }
 
-fn render(r: &ConvertReport) -> String {
+pub fn render(r: &ConvertReport) -> String {
     use std::fmt::Write;
     let mut o = String::new();
     let i = &r.import;

@@ -21,6 +21,7 @@ use oocfmt_build::convert::ConvertError;
 use oocfmt_build::kdtree::KdError;
 use oocfmt_build::layout::LayoutError;
 use oocfmt_build::ooc::OocError;
+use oocfmt_build::subsets::SubsetError;
 use oocfmt_meshio::export::ExportError;
 use oocfmt_meshio::import::ImportError;
 use oocfmt_scenes::GenError;
@@ -65,6 +66,12 @@ pub enum CliError {
     /// `convert` stopped by a signal; `code` is 128 + its number.
     #[error("{source}")]
     Interrupted { code: u8, source: ConvertError },
+    /// `plan`, `convert --plan` or `merge` failed.
+    #[error("{0}")]
+    Subsets(#[from] SubsetError),
+    /// `plan`, `convert --plan` or `merge` stopped by a signal; `code` is 128 + its number.
+    #[error("{source}")]
+    SubsetsInterrupted { code: u8, source: SubsetError },
 }
 
 impl CliError {
@@ -130,7 +137,10 @@ impl CliError {
                     _ => EXIT_INVALID,
                 }
             }
-            C::Convert(ConvertError::Import(_) | ConvertError::OutOfCore(OocError::Import(_)))
+            C::Convert(
+                ConvertError::Import(_)
+                | ConvertError::OutOfCore(OocError::Import(_) | OocError::BlockFile(_)),
+            )
             | C::Export(
                 ExportError::CountMismatch { .. }
                 | ExportError::PartCountMismatch { .. }
@@ -139,10 +149,55 @@ impl CliError {
                 | ExportError::Changed { .. },
             ) => EXIT_INVALID,
             C::Compare(_) | C::Json(_) => EXIT_INTERNAL,
-            C::Interrupted { code, .. } => *code,
+            C::Interrupted { code, .. } | C::SubsetsInterrupted { code, .. } => *code,
+            C::Subsets(e) => subsets_exit_code(e),
             // Stopped on request, with no signal to tell which.
             C::Convert(ConvertError::Interrupted { .. }) => EXIT_SIGINT,
         }
+    }
+}
+
+/// The exit code of a split build's error: a damaged subset file or plan, or a model that
+/// cannot be imported, is invalid input; a wrong set of files, a changed input or an I/O
+/// failure could not run.
+fn subsets_exit_code(e: &SubsetError) -> u8 {
+    use SubsetError as S;
+    match e {
+        S::Corrupt { .. } | S::Plan { .. } | S::OutOfCore(OocError::BlockFile(_)) => EXIT_INVALID,
+        S::Import(ImportError::Io { .. })
+        | S::OutOfCore(OocError::Import(ImportError::Io { .. })) => EXIT_USAGE,
+        S::Import(_) | S::OutOfCore(OocError::Import(_)) => EXIT_INVALID,
+        S::OutOfCore(OocError::Format(f) | OocError::Layout(LayoutError::Format(f))) => {
+            format_exit_code(f)
+        }
+        S::Convert(c) => match &**c {
+            ConvertError::Import(ImportError::Io { .. }) => EXIT_USAGE,
+            ConvertError::Import(_) => EXIT_INVALID,
+            ConvertError::Format(f) => format_exit_code(f),
+            _ => EXIT_USAGE,
+        },
+        S::OutOfCore(
+            OocError::Spill { .. }
+            | OocError::SpillWrite { .. }
+            | OocError::SpillLength { .. }
+            | OocError::SpillCorrupt { .. }
+            | OocError::NoSpace(_),
+        ) => EXIT_USAGE,
+        S::Layout(LayoutError::Internal(_))
+        | S::OutOfCore(OocError::Layout(LayoutError::Internal(_)))
+        | S::Internal(_)
+        | S::Json(_) => EXIT_INTERNAL,
+        S::Layout(_) | S::OutOfCore(_) => EXIT_INVALID,
+        S::Interrupted { .. } => EXIT_SIGINT,
+        S::Io { .. }
+        | S::InputChanged { .. }
+        | S::Stdin
+        | S::TooManySubsets
+        | S::NoSuchSubset { .. }
+        | S::NoSubsets
+        | S::Missing { .. }
+        | S::Duplicate { .. }
+        | S::Foreign { .. } => EXIT_USAGE,
     }
 }
 

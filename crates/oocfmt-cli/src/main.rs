@@ -17,6 +17,7 @@
 
 mod accuracy;
 mod args;
+mod build_args;
 mod convert;
 mod curve;
 mod demo;
@@ -29,6 +30,7 @@ mod inspect_block;
 mod out;
 mod progress;
 mod render;
+mod subsets;
 mod verify;
 mod view;
 
@@ -58,6 +60,10 @@ enum Command {
     Verify(verify::Args),
     /// Convert OBJ, glTF, STL and PLY files (or standard input) into one container
     Convert(convert::Args),
+    /// Plan a build split into subsets, for separate processes or a batch engine's tasks
+    Plan(subsets::PlanArgs),
+    /// Merge the subset files of a plan into one container
+    Merge(subsets::MergeArgs),
     /// Write the full-detail triangles of a container back out as OBJ or PLY
     Export(export::Args),
     /// Generate a test scene as OBJ (streaming, any size; `-o -`: to standard output)
@@ -85,6 +91,8 @@ fn main() -> ExitCode {
         Command::Inspect(a) => inspect::run(&a),
         Command::Verify(a) => verify::run(&a),
         Command::Convert(a) => convert::run(&a),
+        Command::Plan(a) => subsets::run_plan(&a),
+        Command::Merge(a) => subsets::run_merge(&a),
         Command::Export(a) => export::run(&a),
         Command::Gen(a) => gen::run(&a),
         Command::Demo(a) => demo::run(&a),

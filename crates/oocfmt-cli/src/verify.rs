@@ -11,7 +11,7 @@ use crate::progress;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The container to check
+    /// The container to check (or a subset file of `convert --plan P --subset I`)
     pub file: PathBuf,
     /// Header, trailer, directory and metadata only
     #[arg(long, conflicts_with = "deep")]
@@ -31,6 +31,9 @@ pub struct Args {
 }
 
 pub fn run(a: &Args) -> CliResult {
+    if oocfmt_build::subsets::is_subset_file(&a.file) {
+        return run_subset(a);
+    }
     let depth = if a.quick {
         Depth::Quick
     } else if a.deep {
@@ -76,4 +79,37 @@ pub fn run(a: &Args) -> CliResult {
         )?;
     }
     Ok(if report.valid { 0 } else { 1 })
+}
+
+/// A subset file (`oocfmt convert --plan P --subset I`): its header, body, plan and blocks.
+fn run_subset(a: &Args) -> CliResult {
+    let name = a.file.display().to_string();
+    let checked = oocfmt_build::subsets::verify_subset(&a.file);
+    if a.json {
+        let v = match &checked {
+            Ok(c) => {
+                serde_json::json!({"schema": "oocfmt-verify-subset/1", "file": name, "valid": true, "subset": c})
+            }
+            Err(e) => {
+                serde_json::json!({"schema": "oocfmt-verify-subset/1", "file": name, "valid": false, "error": e.to_string()})
+            }
+        };
+        outln!("{}", to_json(&v)?)?;
+    } else {
+        match &checked {
+            Ok(c) => outln!(
+                "{name}: valid subset file: subset {} of {} of plan {}; {} blocks, {} bytes checked",
+                c.index,
+                c.subsets,
+                c.plan,
+                c.blocks,
+                c.block_bytes
+            )?,
+            Err(e) => {
+                outln!("error: {e}")?;
+                outln!("{name}: INVALID subset file")?;
+            }
+        }
+    }
+    Ok(if checked.is_ok() { 0 } else { 1 })
 }

@@ -4,7 +4,7 @@ use oocfmt::metadata::Material;
 
 /// An axis-aligned box. An empty box has `min > max` on every axis, so extending it by any
 /// point yields that point.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Bounds {
     /// The lowest corner: the smallest coordinate on each axis.
     pub min: [f32; 3],
@@ -205,7 +205,7 @@ pub struct Mesh {
 
 /// A named node of the input's assembly (an OBJ `o`/`g`, a glTF node with a mesh, an STL
 /// `solid`, an input file), as an importer declares it.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct PartDef {
     /// The name the input gives it (may be empty).
     pub name: String,

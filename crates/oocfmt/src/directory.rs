@@ -26,7 +26,9 @@ pub const OFF_RESERVED: usize = OFF_ITEM_COUNT + 4;
 pub const ENTRY_LEN: usize = OFF_RESERVED + 4;
 
 /// What a block holds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum BlockKind {
     /// Treelets of the kd-tree of one LOD level, with their LOD entries (spec §6).

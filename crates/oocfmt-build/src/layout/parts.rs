@@ -12,7 +12,7 @@ use crate::lod::triangle_area;
 use oocfmt_meshio::mesh::{Bounds, Mesh, PartDef};
 
 /// What the primaries of one part add up to.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct PartStat {
     pub triangles: u64,
     /// The box of their corners, exact (min/max of stored coordinates).

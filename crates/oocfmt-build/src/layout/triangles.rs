@@ -15,7 +15,7 @@ use crate::kdtree::{KdNode, KdTree};
 use oocfmt_meshio::mesh::Mesh;
 
 /// Where a leaf's list entries live.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct LeafRef {
     /// Index among the triangle blocks (not yet a block id).
     pub block: u32,
@@ -104,7 +104,7 @@ pub(crate) struct PlannedTriangles {
 }
 
 /// What an encoded triangle block holds, for the metadata counts.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub(crate) struct TriangleCounts {
     pub primaries: u64,
     pub triangles: u64,

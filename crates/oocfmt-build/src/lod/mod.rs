@@ -79,7 +79,7 @@ pub const LOD_SAMPLING_PROXIES: &str = "first-hit rays for proxies only, Owen-sc
 pub const DEFAULT_VOXEL_THRESHOLD: f32 = 0.1;
 
 /// The LOD data of one node.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LodData {
     /// The node's look from outside: one sample, or one per face when the faces differ by
     /// more than the voxel threshold. `None` where the file stores no voxels (an R-LOD-only

@@ -18,7 +18,7 @@ pub const EXPANSION_SLACK: f64 = 1.0 / 128.0;
 const JACOBI_SWEEPS: usize = 32;
 
 /// A plane fitted in f64, before it is rounded into a record.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PlaneFit {
     /// Unit normal.
     pub normal: [f64; 3],

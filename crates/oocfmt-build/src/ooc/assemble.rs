@@ -25,6 +25,27 @@ pub struct Order {
     pub chunk_triangles: Vec<Vec<u32>>,
     /// LOD levels (one more than the deepest treelet block's level).
     pub levels: u32,
+    /// What each chunk's treelet blocks add to the proxy ids they hold (none: 0).
+    pub proxy_shift: Vec<u32>,
+}
+
+/// Where the chunks' encoded blocks wait for the file order: the build's own spill, or the
+/// subset files a merge reads.
+pub trait BlockSource {
+    /// Ends writing: what follows only reads.
+    fn close(&mut self) {}
+    /// The raw bytes of block `b` of chunk `chunk`, each block read once.
+    fn read(&mut self, chunk: usize, b: &SpilledBlock) -> Result<Vec<u8>, OocError>;
+}
+
+impl BlockSource for BlockSpill {
+    fn close(&mut self) {
+        BlockSpill::close(self);
+    }
+
+    fn read(&mut self, _chunk: usize, b: &SpilledBlock) -> Result<Vec<u8>, OocError> {
+        BlockSpill::read(self, b)
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -57,6 +78,7 @@ pub fn order(top_levels: &[u16], chunks: &[ChunkOut]) -> Result<Order, LayoutErr
             .map(|c| vec![0; c.triangle_blocks.len()])
             .collect(),
         levels: u32::from(deepest) + 1,
+        proxy_shift: Vec::new(),
     };
     let next =
         |o: &Order| u32::try_from(o.blocks.len()).map_err(|_| LayoutError::TooMany("blocks"));
@@ -114,6 +136,7 @@ impl Order {
         let empty = Vec::new();
         let treelets = self.chunk_treelets.get(chunk).unwrap_or(&empty);
         let triangles = self.chunk_triangles.get(chunk).unwrap_or(&empty);
+        let shift = self.proxy_shift.get(chunk).copied().unwrap_or(0);
         let mut nodes = Vec::new();
         let block = TreeletBlock::parse_with(raw, kinds)?;
         let area = 16 + 4 * block.treelet_count();
@@ -125,7 +148,16 @@ impl Order {
         })?;
         for (at, mut node) in nodes {
             match &mut node {
-                Node::Lod { child_block, .. } => *child_block = lookup(treelets, *child_block)?,
+                Node::Lod {
+                    child_block, proxy, ..
+                } => {
+                    *child_block = lookup(treelets, *child_block)?;
+                    if *proxy != oocfmt::records::NO_PROXY {
+                        *proxy = proxy
+                            .checked_add(shift)
+                            .ok_or(LayoutError::TooMany("proxies"))?;
+                    }
+                }
                 Node::Leaf { block, .. } => *block = lookup(triangles, *block)?,
                 Node::Basic { .. } => {}
             }
@@ -170,7 +202,7 @@ pub fn write(
     path: &Path,
     write: WriteOptions,
     parts: &Parts,
-    spill: &mut BlockSpill,
+    blocks: &mut dyn BlockSource,
     disk: &SpillDisk,
     metadata: &Metadata,
     progress: &mut dyn Progress,
@@ -182,7 +214,7 @@ pub fn write(
         lod,
     } = *parts;
     let block_size = 1usize << write.block_size_log2.min(20);
-    spill.close();
+    blocks.close();
     let per_block = (block_size / PROXY_LEN).max(1);
     let proxy_blocks = proxies.len().div_ceil(PROXY_LEN * per_block);
     progress.phase("write", Some((order.blocks.len() + proxy_blocks) as u64));
@@ -199,7 +231,7 @@ pub fn write(
                     .cloned()
                     .ok_or_else(|| LayoutError::Internal("a top block is missing").into()),
                 Source::Chunk(i, b) => {
-                    let mut raw = spill.read(&b)?;
+                    let mut raw = blocks.read(i, &b)?;
                     if b.kind == BlockKind::Treelet {
                         order.patch_treelets(i, &mut raw, lod)?;
                     }

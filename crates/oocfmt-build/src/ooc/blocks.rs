@@ -17,7 +17,7 @@ use super::disk::SpillDisk;
 use super::OocError;
 
 /// A block written to the spill, by place.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 pub struct SpilledBlock {
     pub kind: BlockKind,
     pub level: u16,
@@ -26,6 +26,8 @@ pub struct SpilledBlock {
     pub segment: u32,
     pub offset: u64,
     pub len: u64,
+    /// CRC-32C of its raw bytes, checked when it is read back.
+    pub crc: u32,
 }
 
 /// One segment file of the block spill.
@@ -96,6 +98,7 @@ impl BlockSpill {
             segment: k,
             offset,
             len,
+            crc: crc32c::crc32c(raw),
         })
     }
 
@@ -157,6 +160,12 @@ impl BlockSpill {
         if let Some(f) = &seg.file {
             f.read_exact_at(&mut raw, b.offset)
                 .map_err(|e| OocError::spill(&seg.path, e))?;
+        }
+        if crc32c::crc32c(&raw) != b.crc {
+            return Err(OocError::corrupt(
+                &seg.path,
+                "a spilled block fails its checksum",
+            ));
         }
         seg.unread -= 1;
         if seg.unread == 0 {

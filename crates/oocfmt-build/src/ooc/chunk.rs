@@ -80,7 +80,7 @@ impl SceneFacts {
 }
 
 /// A node of a chunk's top treelet, for the top layout.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub enum UpperNode {
     Basic {
         axis: u8,
@@ -101,6 +101,7 @@ pub enum UpperNode {
 }
 
 /// What a chunk hands back once its blocks are spilled.
+#[derive(serde::Serialize, serde::Deserialize)]
 pub struct ChunkOut {
     /// Its top treelet in preorder, children as indices into this list.
     pub upper: Vec<UpperNode>,
@@ -119,7 +120,7 @@ pub struct ChunkOut {
     pub parts: Vec<(u32, PartStat)>,
 }
 
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct ChunkCounts {
     pub basic_nodes: u64,
     pub lod_nodes: u64,

@@ -5,17 +5,17 @@
 //! chunks' top treelets form a small tree laid out last (`top`), and `assemble` writes
 //! everything in the order the spec requires. Memory holds one chunk at a time, plus the top.
 
-mod assemble;
-mod blocks;
-mod chunk;
+pub(crate) mod assemble;
+pub(crate) mod blocks;
+pub(crate) mod chunk;
 pub mod disk;
 mod record;
-mod segments;
+pub(crate) mod segments;
 pub mod soup;
 pub mod space;
-mod split;
+pub(crate) mod split;
 mod tee;
-mod top;
+pub(crate) mod top;
 
 #[cfg(test)]
 mod full_disk;
@@ -24,6 +24,7 @@ mod tests;
 
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::sync::Arc;
 
 use rustc_hash::FxHashMap;
 
@@ -43,8 +44,11 @@ use crate::lod::LodData;
 use crate::progress::Progress;
 use crate::report::PhaseClock;
 use chunk::{BlockSpill, ChunkBuilder, ChunkCounts, ChunkOut, SceneFacts};
+use disk::SpillDisk;
 use oocfmt_meshio::import::{compact_materials, ChunkSchema, InputTriangle};
+use oocfmt_meshio::mesh::Bounds;
 use soup::Soup;
+pub(crate) use split::TopTree;
 
 /// Why the out-of-core build, or the spill files it and the importer use, failed.
 #[derive(Debug, thiserror::Error)]
@@ -70,6 +74,9 @@ pub enum OocError {
         /// The I/O error (`StorageFull` when the disk is full).
         source: std::io::Error,
     },
+    /// A block read back from a subset file failed its checks (a merge).
+    #[error("{0}")]
+    BlockFile(String),
     /// A spill file's length is not what was written to it.
     #[error("spill file {path}: {len} bytes, expected {expected}")]
     SpillLength {
@@ -181,43 +188,24 @@ pub(crate) fn build(
     clock: &mut PhaseClock,
     progress: &mut dyn Progress,
 ) -> Result<(WriteSummary, OocStats), OocError> {
-    let b = OocBuild::new(&soup, kd, layout, chunking.chunk_triangles, chunking.dir)?;
-    let mut tree = b.split(progress)?;
+    let scene = soup.info();
+    let b = OocBuild::new(&scene, &soup.disk, kd, layout, &chunking)?;
+    let start = split::Start::root(scene.bounds);
+    // The split consumes the import's run.
+    let mut tree = b.split(soup.run.clone(), TopTree::default(), start, progress)?;
     clock.done("split");
     let planes = std::mem::take(&mut tree.planes);
-    let mut chunks = b.build_chunks(&tree, planes, progress)?;
+    let top_lod = b.top_lod_nodes(&tree);
+    let (chunks, mut spill) = b.build_chunks(&tree, planes, top_lod, progress)?;
     clock.done("chunks");
-    let given = b.top_lod_data(&tree, &chunks)?;
-    let mut top = b.plan_top(&tree, &chunks, &given)?;
-    top.assign_final_ids()?;
-    let top_raw = top.encode()?;
-    let proxies = b.gather_proxies(std::mem::take(&mut chunks.proxies), &top)?;
-    let (counts, stats) = b.tally(&tree, &chunks, &top);
-    let mut metadata = b.metadata(&counts, &top.order, proxies.len(), &stats);
-    metadata.parts = b.part_table(&chunks);
-    clock.done("top");
-    let summary = assemble::write(
-        output,
-        layout.write,
-        &assemble::Parts {
-            order: &top.order,
-            top: &top_raw,
-            proxies: &proxies,
-            lod: b.facts.kinds,
-        },
-        &mut chunks.spill,
-        &soup.disk,
-        &metadata,
-        progress,
-    )?;
-    clock.done("write");
-    Ok((summary, stats))
+    b.finish(&tree, chunks, &mut spill, output, clock, progress)
 }
 
 /// One out-of-core build: its inputs and the scene-wide facts every phase reads. [`build`]
 /// runs the phases in data-flow order, each on what the one before produced.
-struct OocBuild<'a> {
-    soup: &'a Soup,
+pub(crate) struct OocBuild<'a> {
+    scene: &'a SceneInfo,
+    disk: &'a Arc<SpillDisk>,
     kd: &'a KdBuildOptions,
     layout: &'a LayoutOptions,
     /// Most triangles a chunk holds (at least 1).
@@ -231,16 +219,38 @@ struct OocBuild<'a> {
 }
 
 /// The chunks, built and spilled.
-struct Chunks {
-    outs: Vec<ChunkOut>,
+pub(crate) struct Chunks {
+    pub outs: Vec<ChunkOut>,
     /// Each chunk's proxy records (node blocks chunk-local), taken out of its [`ChunkOut`].
-    proxies: Vec<Vec<u8>>,
+    pub proxies: Vec<Vec<u8>>,
     /// Proxies of all chunks: the top's proxy ids start here.
-    proxy_count: u32,
-    spill: BlockSpill,
-    top_lod: Vec<top::TopLod>,
+    pub proxy_count: u32,
+    /// What each chunk's treelet blocks add to the proxy ids they hold: 0 when the chunks
+    /// were numbered as one series, the proxies of the subsets before when merged.
+    pub proxy_shift: Vec<u32>,
+    pub top_lod: Vec<top::TopLod>,
     /// The R-LOD planes of the top LOD nodes, their deviations widened by every chunk below.
-    planes: BTreeMap<usize, PlaneFit>,
+    pub planes: BTreeMap<usize, PlaneFit>,
+}
+
+/// What the whole scene has, as the import found it: what every chunk and the top are built
+/// with, whichever subset of the scene a process builds.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SceneInfo {
+    /// The box of every kept triangle's corners, positions relative to the scene origin.
+    pub bounds: Bounds,
+    /// Triangles kept.
+    pub count: u64,
+    /// Materials as the importers added them.
+    pub materials: Vec<oocfmt::metadata::Material>,
+    /// The materials triangles use (`None`: no material), in order of first use.
+    pub used_materials: Vec<Option<u32>>,
+    /// The parts as the importers declared them.
+    pub parts: Vec<oocfmt_meshio::import::PartDef>,
+    /// Some triangle has vertex normals.
+    pub normals: bool,
+    /// Some triangle has vertex colours.
+    pub colours: bool,
 }
 
 /// The top of the tree, planned, and the file order of every block.
@@ -252,12 +262,12 @@ struct TopPlan {
 
 impl<'a> OocBuild<'a> {
     /// Checks the options and gathers the scene-wide facts: schema, material table, block size.
-    fn new(
-        soup: &'a Soup,
+    pub(crate) fn new(
+        soup: &'a SceneInfo,
+        disk: &'a Arc<SpillDisk>,
         kd: &'a KdBuildOptions,
         layout: &'a LayoutOptions,
-        chunk_triangles: u64,
-        dir: &'a Path,
+        chunking: &Chunking<'a>,
     ) -> Result<OocBuild<'a>, OocError> {
         kd.check()?;
         let block_size = 1usize << layout.write.block_size_log2.min(20);
@@ -292,11 +302,12 @@ impl<'a> OocBuild<'a> {
             unnamed: soup.parts.len().checked_sub(1).map(|p| p as u32),
         };
         Ok(OocBuild {
-            soup,
+            scene: soup,
+            disk,
             kd,
             layout,
-            budget: chunk_triangles.max(1),
-            dir,
+            budget: chunking.chunk_triangles.max(1),
+            dir: chunking.dir,
             block_size,
             schema,
             materials: table,
@@ -304,9 +315,21 @@ impl<'a> OocBuild<'a> {
         })
     }
 
-    /// Median-splits the soup into chunks within the budget, fitting the R-LOD planes of the
-    /// split nodes that are LOD nodes on the way when the build makes R-LODs.
-    fn split(&self, progress: &mut dyn Progress) -> Result<split::TopTree, OocError> {
+    /// The scene-wide facts every chunk is built with.
+    pub(crate) fn facts(&self) -> &SceneFacts {
+        &self.facts
+    }
+
+    /// Median-splits `run`, the triangles of `start`'s cell, into chunks within the budget,
+    /// below the nodes `top` already holds, fitting the R-LOD planes of the split nodes that
+    /// are LOD nodes on the way when the build makes R-LODs. Consumes the run.
+    pub(crate) fn split(
+        &self,
+        run: segments::Run,
+        top: TopTree,
+        start: split::Start,
+        progress: &mut dyn Progress,
+    ) -> Result<TopTree, OocError> {
         let colour = |t: &InputTriangle| self.facts.colour(t);
         let part = |t: &InputTriangle| self.facts.part(t);
         let rlods = self.layout.write.lod.rlod.then_some(split::RlodMoments {
@@ -316,40 +339,36 @@ impl<'a> OocBuild<'a> {
         });
         let to = split::SpillTo {
             dir: self.dir,
-            disk: &self.soup.disk,
+            disk: self.disk,
         };
-        // The split consumes the import's run.
-        let run = self.soup.run.clone();
-        split::split(
-            run,
-            self.soup.bounds,
-            self.budget,
-            &to,
-            rlods.as_ref(),
-            progress,
+        split::split_from(run, top, start, self.budget, &to, rlods.as_ref(), progress)
+    }
+
+    /// The LOD nodes among `tree`'s median-split nodes, with the rays that will sample them.
+    pub(crate) fn top_lod_nodes(&self, tree: &TopTree) -> Vec<top::TopLod> {
+        top::top_lod_nodes(
+            tree,
+            self.scene.bounds,
+            self.layout.treelet_height,
+            self.layout.voxel_threshold,
         )
     }
 
     /// Builds every chunk in turn and spills its blocks; each chunk answers the rays of the
-    /// top LOD nodes above it and widens their R-LOD `planes` by its deviation.
-    fn build_chunks(
+    /// `top_lod` nodes above it and widens their R-LOD `planes` by its deviation.
+    pub(crate) fn build_chunks(
         &self,
-        tree: &split::TopTree,
+        tree: &TopTree,
         mut planes: BTreeMap<usize, PlaneFit>,
+        mut top_lod: Vec<top::TopLod>,
         progress: &mut dyn Progress,
-    ) -> Result<Chunks, OocError> {
-        let mut top_lod = top::top_lod_nodes(
-            tree,
-            self.soup.bounds,
-            self.layout.treelet_height,
-            self.layout.voxel_threshold,
-        );
+    ) -> Result<(Chunks, BlockSpill), OocError> {
         let mut builder = ChunkBuilder {
             facts: &self.facts,
             kd: self.kd,
             layout: self.layout,
-            spill: BlockSpill::new(self.dir, self.soup.disk.clone()),
-            disk: &self.soup.disk,
+            spill: BlockSpill::new(self.dir, self.disk.clone()),
+            disk: self.disk,
         };
         let mut outs: Vec<ChunkOut> = Vec::with_capacity(tree.chunks.len());
         let mut chunk_proxies = Vec::new();
@@ -382,14 +401,54 @@ impl<'a> OocBuild<'a> {
             progress.advance(i as u64 + 1);
         }
         progress.finish_phase();
-        Ok(Chunks {
+        let chunks = Chunks {
+            proxy_shift: vec![0; outs.len()],
             outs,
             proxies: chunk_proxies,
             proxy_count,
-            spill: builder.spill,
             top_lod,
             planes,
-        })
+        };
+        Ok((chunks, builder.spill))
+    }
+
+    /// Lays out the top over the built `chunks`, whose blocks `blocks` holds, and writes the
+    /// container at `output`.
+    pub(crate) fn finish(
+        &self,
+        tree: &TopTree,
+        mut chunks: Chunks,
+        blocks: &mut dyn assemble::BlockSource,
+        output: &Path,
+        clock: &mut PhaseClock,
+        progress: &mut dyn Progress,
+    ) -> Result<(WriteSummary, OocStats), OocError> {
+        let given = self.top_lod_data(tree, &chunks)?;
+        let mut top = self.plan_top(tree, &chunks, &given)?;
+        top.order.proxy_shift = std::mem::take(&mut chunks.proxy_shift);
+        top.assign_final_ids()?;
+        let top_raw = top.encode()?;
+        let proxies = self.gather_proxies(std::mem::take(&mut chunks.proxies), &top)?;
+        let (counts, stats) = self.tally(tree, &chunks, &top);
+        let mut metadata = self.metadata(&counts, &top.order, proxies.len(), &stats);
+        metadata.parts = self.part_table(&chunks);
+        clock.done("top");
+        let summary = assemble::write(
+            output,
+            self.layout.write,
+            &assemble::Parts {
+                order: &top.order,
+                top: &top_raw,
+                proxies: &proxies,
+                lod: self.facts.kinds,
+            },
+            blocks,
+            self.disk,
+            &metadata,
+            progress,
+        )?;
+        clock.done("write");
+        Ok((summary, stats))
     }
 
     /// The LOD data (and R-LOD) of each top LOD node, from its answered rays and the area of
@@ -441,7 +500,7 @@ impl<'a> OocBuild<'a> {
         chunks: &Chunks,
         given: &BTreeMap<usize, (LodData, Option<Rlod>)>,
     ) -> Result<TopPlan, OocError> {
-        let skel = top::skeleton(tree, &chunks.outs, given, self.soup.bounds)?;
+        let skel = top::skeleton(tree, &chunks.outs, given, self.scene.bounds)?;
         let external: BTreeMap<NodeId, (u32, u32)> = skel
             .frontier
             .iter()
@@ -488,11 +547,11 @@ impl<'a> OocBuild<'a> {
 
     /// The part table: every chunk's primaries tallied by part.
     fn part_table(&self, chunks: &Chunks) -> Vec<oocfmt::metadata::Part> {
-        let mut totals = PartTotals::new(self.soup.parts.len());
+        let mut totals = PartTotals::new(self.scene.parts.len());
         for o in &chunks.outs {
             totals.add(&o.parts);
         }
-        totals.table(&self.soup.parts)
+        totals.table(&self.scene.parts)
     }
 
     /// The counts of the whole tree (the top's treelets and every chunk's) and the build's
@@ -521,7 +580,7 @@ impl<'a> OocBuild<'a> {
             stats.largest_chunk_triangles = stats.largest_chunk_triangles.max(c.count);
             stats.split_copies += c.count;
         }
-        stats.split_copies = stats.split_copies.saturating_sub(self.soup.count);
+        stats.split_copies = stats.split_copies.saturating_sub(self.scene.count);
         (counts, stats)
     }
 
@@ -533,7 +592,7 @@ impl<'a> OocBuild<'a> {
         proxy_bytes: usize,
         stats: &OocStats,
     ) -> Metadata {
-        let (kd, layout, bounds) = (self.kd, self.layout, self.soup.bounds);
+        let (kd, layout, bounds) = (self.kd, self.layout, self.scene.bounds);
         let mut schema = self.schema;
         schema.six_sample_voxels = counts.voxels_six > 0;
         let mut params = kd.params();

@@ -156,6 +156,19 @@ impl Soup {
         Ok(store.into_mesh(self.materials.clone(), self.parts.clone())?)
     }
 
+    /// What the whole scene has, without its triangles.
+    pub fn info(&self) -> super::SceneInfo {
+        super::SceneInfo {
+            bounds: self.bounds,
+            count: self.count,
+            materials: self.materials.clone(),
+            used_materials: self.used_materials.clone(),
+            parts: self.parts.clone(),
+            normals: self.normals,
+            colours: self.colours,
+        }
+    }
+
     /// Spill bytes per triangle of the import's run: what the scene's records take.
     pub fn bytes_per_triangle(&self) -> f64 {
         self.run.bytes() as f64 / self.count.max(1) as f64

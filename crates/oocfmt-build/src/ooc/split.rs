@@ -23,7 +23,7 @@ use oocfmt_meshio::import::InputTriangle;
 use oocfmt_meshio::mesh::Bounds;
 
 /// The top of the tree, above the chunks: inner nodes from median splits, in preorder.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum TopNode {
     Inner {
         axis: u8,
@@ -88,9 +88,30 @@ pub struct SpillTo<'a> {
     pub disk: &'a Arc<SpillDisk>,
 }
 
+/// Where a split starts: the top node its cell fills, the cell, the cell's depth below the
+/// scene root and the top nodes above it, root first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Start {
+    pub node: usize,
+    pub cell: Bounds,
+    pub depth: u32,
+    pub ancestors: Vec<usize>,
+}
+
+impl Start {
+    /// The whole scene, `cell`, as node 0.
+    pub fn root(cell: Bounds) -> Start {
+        Start {
+            node: 0,
+            cell,
+            depth: 0,
+            ancestors: Vec::new(),
+        }
+    }
+}
+
 /// Splits the soup `run` over `cell` until every chunk holds at most `budget` triangles.
-/// Chunks come out left to right; their runs replace the input's, which each pass consumes as
-/// it reads it.
+#[cfg(test)]
 pub fn split(
     run: Run,
     cell: Bounds,
@@ -99,20 +120,38 @@ pub fn split(
     rlods: Option<&RlodMoments>,
     progress: &mut dyn Progress,
 ) -> Result<TopTree, OocError> {
-    let mut top = TopTree::default();
+    let start = Start::root(cell);
+    split_from(run, TopTree::default(), start, budget, to, rlods, progress)
+}
+
+/// Splits `run`, the triangles of `start`'s cell, until every chunk holds at most `budget`
+/// triangles, adding the nodes below `start.node` to `top` (which may already hold the nodes
+/// above it). Chunks come out left to right; their runs replace the input's, which each pass
+/// consumes as it reads it.
+pub fn split_from(
+    run: Run,
+    mut top: TopTree,
+    start: Start,
+    budget: u64,
+    to: &SpillTo,
+    rlods: Option<&RlodMoments>,
+    progress: &mut dyn Progress,
+) -> Result<TopTree, OocError> {
     let mut done = 0u64;
     // Names each pass's runs: a top node id can come back after a pass that made no progress.
     let mut pass = 0usize;
     let count = run.count;
     progress.phase("split", Some(count));
+    while top.nodes.len() <= start.node {
+        top.nodes.push(TopNode::Chunk(usize::MAX));
+    }
     let mut stack = vec![Pending {
-        node: 0,
+        node: start.node,
         run,
-        cell,
-        depth: 0,
-        ancestors: Vec::new(),
+        cell: start.cell,
+        depth: start.depth,
+        ancestors: start.ancestors,
     }];
-    top.nodes.push(TopNode::Chunk(0));
     while let Some(mut p) = stack.pop() {
         let cut = Cut::middle(&p.cell);
         let n = p.run.count;
@@ -159,14 +198,14 @@ struct Pending {
 }
 
 /// A cell's median cut: the middle of its longest axis.
-struct Cut {
-    cell: Bounds,
-    axis: usize,
-    mid: f32,
+pub(crate) struct Cut {
+    pub cell: Bounds,
+    pub axis: usize,
+    pub mid: f32,
 }
 
 impl Cut {
-    fn middle(cell: &Bounds) -> Cut {
+    pub fn middle(cell: &Bounds) -> Cut {
         let axis = cell.longest_axis();
         let (lo, hi) = (cell.min[axis], cell.max[axis]);
         Cut {
@@ -177,7 +216,7 @@ impl Cut {
     }
 
     /// The cut leaves room on both sides.
-    fn inside(&self) -> bool {
+    pub fn inside(&self) -> bool {
         let (lo, hi) = (self.cell.min[self.axis], self.cell.max[self.axis]);
         lo < self.mid && self.mid < hi
     }
@@ -257,14 +296,14 @@ impl TopTree {
 const SIDES_RUN: usize = 1 << 12;
 
 /// The sides of a cut a record's part inside the cell reaches, and the side of its centroid.
-struct Sides {
-    left: bool,
-    right: bool,
-    owner_left: bool,
+pub(crate) struct Sides {
+    pub left: bool,
+    pub right: bool,
+    pub owner_left: bool,
 }
 
 impl Sides {
-    fn of(t: &SoupTriangle, cut: &Cut) -> Sides {
+    pub fn of(t: &SoupTriangle, cut: &Cut) -> Sides {
         let (axis, mid) = (cut.axis, cut.mid);
         let part = clip_triangle(t.triangle.positions, &cut.cell);
         let (pmin, pmax) = (part.min[axis], part.max[axis]);
@@ -274,6 +313,20 @@ impl Sides {
             right: pmax > mid || in_plane,
             owner_left: t.centroid()[axis] <= mid,
         }
+    }
+
+    /// `t`'s copy on the left side (or the right), or `None` when its part does not reach
+    /// that side: primary when `t` is and the side holds its centroid, or it reaches only
+    /// that side.
+    pub fn copy(&self, t: &SoupTriangle, left: bool) -> Option<SoupTriangle> {
+        let (reach, owner, other) = match left {
+            true => (self.left, self.owner_left, self.right),
+            false => (self.right, !self.owner_left, self.left),
+        };
+        reach.then_some(SoupTriangle {
+            primary: t.primary && (owner || !other),
+            ..*t
+        })
     }
 }
 
@@ -321,15 +374,11 @@ fn split_run(
             }
             None => sides(),
         };
-        for (&t, s) in batch.iter().zip(&sides) {
-            if s.left {
-                let mut c = t;
-                c.primary = t.primary && (s.owner_left || !s.right);
+        for (t, s) in batch.iter().zip(&sides) {
+            if let Some(c) = s.copy(t, true) {
                 left.push(&c)?;
             }
-            if s.right {
-                let mut c = t;
-                c.primary = t.primary && (!s.owner_left || !s.left);
+            if let Some(c) = s.copy(t, false) {
                 right.push(&c)?;
             }
         }

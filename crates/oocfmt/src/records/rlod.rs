@@ -139,7 +139,7 @@ impl LodKinds {
 /// One R-LOD record. The plane is `{x : normal · x = offset}` in stored coordinates; the
 /// deviation and expansion are codes in steps of a node radius / 127.5, rounded up by
 /// the writer so the bounds they decode to never fall short.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Rlod {
     /// Unit plane normal (|n|² within [`RLOD_NORMAL_TOLERANCE`] of 1), finite.
     pub normal: [f32; 3],

@@ -3,7 +3,7 @@
 use crate::error::{bad, Code, Result};
 
 /// A packed normal + colour sample.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct Sample(pub u32);
 
 const SINGLE: u32 = 1 << 31;
@@ -113,7 +113,7 @@ impl Sample {
 
 /// What a sample's footprint looks like beyond its mean normal and colour (spec §5.1): how
 /// much the normals seen disagree, and how much of the footprint the surface covers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct Footprint {
     /// σ × 255: the length of the mean of the unit normals seen, each turned to face the ray.
     pub shade: u8,
@@ -179,7 +179,7 @@ impl Footprint {
 
 /// A LOD voxel: one sample for the whole cell, or one per face (−x, +x, −y, +y, −z, +z), each
 /// with its footprint ([`Footprint::FULL`] where the file stores none).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Voxel {
     /// One sample for every direction (stored with the single flag; decoded without it).
     Single(Sample, Footprint),
