@@ -11,7 +11,9 @@ use oocfmt::records::LodKinds;
 use oocfmt::{BlockKind, ReadOptions, Reader};
 use oocfmt_build::convert::{convert, ConvertOptions, BYTES_PER_TRIANGLE_IN_CORE};
 use oocfmt_build::progress::NoProgress;
-use oocfmt_build::subsets::{build_subset, convert_plan, make_plan, merge, Plan, SubsetError};
+use oocfmt_build::subsets::{
+    build_subset, convert_plan, make_plan, merge, update_plan, Plan, SubsetError,
+};
 use oocfmt_scenes::mandelbulb::{self, MandelbulbOptions};
 
 fn options(chunk_triangles: u64) -> ConvertOptions {
@@ -140,7 +142,7 @@ fn split_builds_match(obj: &Path, dir: &Path, opts: &ConvertOptions) {
         std::fs::create_dir(&parts_dir).unwrap();
         let parts = build_all(&plan, &parts_dir, &opts);
         let merged = dir.join(format!("merged-{n}.oocf"));
-        let report = merge(&parts, &merged, &opts, &mut NoProgress).unwrap();
+        let report = merge(&parts, &merged, &opts, None, &mut NoProgress).unwrap();
         assert!(report.copied_blocks > 0);
         let (a, b) = (
             std::fs::read(&one).unwrap(),
@@ -206,7 +208,7 @@ fn an_assembly_keeps_its_parts_when_split() {
     let plan = plan(&inputs, 4, &opts);
     let parts = build_all(&plan, dir.path(), &opts);
     let merged = dir.path().join("merged.oocf");
-    merge(&parts, &merged, &opts, &mut NoProgress).unwrap();
+    merge(&parts, &merged, &opts, None, &mut NoProgress).unwrap();
     deep_verify(&merged);
     let read = |p: &Path| {
         Reader::open(p, ReadOptions::default())
@@ -238,12 +240,15 @@ fn a_missing_repeated_damaged_or_foreign_subset_is_refused() {
     let mut sorted = parts.clone();
     sorted.sort();
 
-    let e = expect_err(merge(&sorted[..2], &out, &opts, &mut NoProgress), &out);
+    let e = expect_err(
+        merge(&sorted[..2], &out, &opts, None, &mut NoProgress),
+        &out,
+    );
     assert!(e.contains("missing subsets 2 of 3"), "{e}");
 
     let mut twice = sorted.clone();
     twice.push(sorted[1].clone());
-    let e = expect_err(merge(&twice, &out, &opts, &mut NoProgress), &out);
+    let e = expect_err(merge(&twice, &out, &opts, None, &mut NoProgress), &out);
     assert!(e.contains("subset 1 is given twice"), "{e}");
 
     // Another plan of the same model (two subsets): its subset 0 is foreign here.
@@ -257,7 +262,7 @@ fn a_missing_repeated_damaged_or_foreign_subset_is_refused() {
         .find(|p| p.ends_with("part-0.oocfp"))
         .unwrap()
         .clone();
-    let e = expect_err(merge(&mixed, &out, &opts, &mut NoProgress), &out);
+    let e = expect_err(merge(&mixed, &out, &opts, None, &mut NoProgress), &out);
     assert!(e.contains("another plan"), "{e}");
 
     // One byte changed in a block, in the body, in the header: each is found.
@@ -273,7 +278,7 @@ fn a_missing_repeated_damaged_or_foreign_subset_is_refused() {
         std::fs::write(&damaged, &bad).unwrap();
         let mut set = sorted.clone();
         set[1] = damaged;
-        let e = expect_err(merge(&set, &out, &opts, &mut NoProgress), &out);
+        let e = expect_err(merge(&set, &out, &opts, None, &mut NoProgress), &out);
         assert!(e.contains(what), "byte {at}: {e}");
     }
     // A truncated file.
@@ -281,7 +286,7 @@ fn a_missing_repeated_damaged_or_foreign_subset_is_refused() {
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     let mut set = sorted.clone();
     set[1] = cut;
-    let e = expect_err(merge(&set, &out, &opts, &mut NoProgress), &out);
+    let e = expect_err(merge(&set, &out, &opts, None, &mut NoProgress), &out);
     assert!(e.contains("cut.oocfp"), "{e}");
 
     // An input changed after planning: the subset refuses to build.
@@ -342,4 +347,111 @@ fn the_subset_header_is_the_specs() {
         section.contains("| 60 | 4 | header CRC |"),
         "header CRC place"
     );
+}
+
+/// Six files side by side along x, each a part; `bump` changes the depths of file 4's
+/// triangles, within the scene's bounds.
+fn row_of_parts(dir: &Path, bump: u32) -> Vec<PathBuf> {
+    (0..6)
+        .map(|f| {
+            let mut text = String::new();
+            for k in 0..400u32 {
+                let x = f as f32 * 2.0 + (k % 40) as f32 * 0.04;
+                let y = (k / 40) as f32 * 0.1;
+                let z = match f {
+                    4 => ((k + bump) % 5) as f32 * 0.1,
+                    _ => (k % 5) as f32 * 0.1,
+                };
+                text += &format!(
+                    "v {x} {y} {z}\nv {} {y} 0.2\nv {x} {} 0.1\n",
+                    x + 0.05,
+                    y + 0.08
+                );
+            }
+            for k in 0..400 {
+                text += &format!("f {} {} {}\n", 3 * k + 1, 3 * k + 2, 3 * k + 3);
+            }
+            let path = dir.join(format!("part{f}.obj"));
+            std::fs::write(&path, text).unwrap();
+            path
+        })
+        .collect()
+}
+
+#[test]
+fn an_update_rebuilds_only_the_subsets_a_changed_part_reaches() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = row_of_parts(dir.path(), 0);
+    let mut opts = options(150);
+    opts.layout.write.lod = LodKinds::RLOD.filtered();
+    let old = plan(&inputs, 8, &opts);
+    assert_eq!(old.subsets, 8);
+    let old_dir = dir.path().join("old");
+    std::fs::create_dir(&old_dir).unwrap();
+    let old_parts = build_all(&old, &old_dir, &opts);
+    // File 4 changes; the scene's bounds and tables do not.
+    row_of_parts(dir.path(), 2);
+    let (new, report) = update_plan(&old, &opts, &mut NoProgress).unwrap();
+    assert_eq!(report.replanned, None, "{report:?}");
+    assert!(new.same_cuts(&old));
+    let reused: Vec<u32> = new.reuse.iter().map(|r| r.index).collect();
+    assert!(!reused.is_empty() && report.rebuild.len() < 8, "{report:?}");
+    assert!(new.reuse.iter().all(|r| r.plan == old.identity));
+    // The subsets file 4 reaches, and those below a LOD cut whose plane it moved.
+    let changed = &new.inputs[4].subsets;
+    assert!(
+        changed.iter().all(|i| report.rebuild.contains(i)),
+        "{changed:?} {report:?}"
+    );
+    assert!(
+        report.rebuild.len() > changed.len(),
+        "{changed:?} {report:?}"
+    );
+    // Rebuild what the plan says, take the rest from the old build.
+    let new_dir = dir.path().join("new");
+    std::fs::create_dir(&new_dir).unwrap();
+    let mut parts = Vec::new();
+    for i in 0..8u32 {
+        let name = format!("part-{i}.oocfp");
+        if reused.contains(&i) {
+            parts.push(
+                old_parts
+                    .iter()
+                    .find(|p| p.ends_with(&name))
+                    .unwrap()
+                    .clone(),
+            );
+        } else {
+            let part = new_dir.join(&name);
+            build_subset(&new, i, &part, &opts, &mut NoProgress).unwrap();
+            parts.push(part);
+        }
+    }
+    let full = dir.path().join("full.oocf");
+    convert_plan(&new, &full, &opts, &mut NoProgress).unwrap();
+    let full = std::fs::read(&full).unwrap();
+    for given in [Some(&new), None] {
+        let merged = dir.path().join("merged.oocf");
+        merge(&parts, &merged, &opts, given, &mut NoProgress).unwrap();
+        assert!(
+            std::fs::read(&merged).unwrap() == full,
+            "the update differs from a full rebuild"
+        );
+        deep_verify(&merged);
+    }
+    // An old file where the update needs a new one is foreign.
+    let stale = report.rebuild[0];
+    let name = format!("part-{stale}.oocfp");
+    let mut wrong = parts.clone();
+    wrong[stale as usize] = old_parts
+        .iter()
+        .find(|p| p.ends_with(&name))
+        .unwrap()
+        .clone();
+    let out = dir.path().join("wrong.oocf");
+    let e = expect_err(
+        merge(&wrong, &out, &opts, Some(&new), &mut NoProgress),
+        &out,
+    );
+    assert!(e.contains("another plan"), "{e}");
 }

@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 
 use oocfmt_build::subsets::{
-    build_subset, convert_plan, make_plan, merge, plan_of_subset, MergeReport, Plan, PlanReport,
-    SubsetError, SubsetReport,
+    build_subset, convert_plan, make_plan, merge, plan_of_subset, update_plan, MergeReport, Plan,
+    PlanReport, SubsetError, SubsetReport,
 };
 
 use crate::args::use_threads;
@@ -21,12 +21,17 @@ use crate::progress::Phases;
 pub struct PlanArgs {
     /// Input files (.obj, .gltf, .glb, .stl, .ply), as for convert; not `-` (a plan reads
     /// them several times)
-    #[arg(required = true)]
+    #[arg(required_unless_present = "update", conflicts_with = "update")]
     pub inputs: Vec<PathBuf>,
     /// Subsets to cut the scene into, 1 to 4096 (cells no triangle reaches are dropped, so the
     /// plan may have fewer)
-    #[arg(long)]
-    pub subsets: u32,
+    #[arg(long, required_unless_present = "update", conflicts_with = "update")]
+    pub subsets: Option<u32>,
+    /// Plan again the inputs of this plan after some changed, with its settings and, where
+    /// it can, its cuts: the new plan reuses the subsets no change reaches, and the report
+    /// lists those to build again
+    #[arg(long, value_name = "OLD_PLAN")]
+    pub update: Option<PathBuf>,
     /// The plan to write (JSON)
     #[arg(short, long)]
     pub output: PathBuf,
@@ -48,6 +53,10 @@ pub struct MergeArgs {
     /// The subset files (.oocfp) of one plan: every subset once, in any order
     #[arg(required = true)]
     pub parts: Vec<PathBuf>,
+    /// The plan to merge for (default: the one the files were built from, or the newest of
+    /// them after `plan --update`)
+    #[arg(long)]
+    pub plan: Option<PathBuf>,
     /// The container to write
     #[arg(short, long)]
     pub output: PathBuf,
@@ -64,16 +73,27 @@ pub struct MergeArgs {
 
 pub fn run_plan(a: &PlanArgs) -> CliResult {
     use_threads(a.threads)?;
-    let opts = a.build.options(None)?;
+    let old = match &a.update {
+        Some(_) if a.build != BuildArgs::defaults()? => {
+            return Err(CliError::Usage(
+                "with --update the build settings are the old plan's: give no build flag".into(),
+            ));
+        }
+        Some(path) => Some(Plan::read(path)?),
+        None => None,
+    };
+    let build = match &old {
+        Some(p) => BuildArgs::from_settings(&p.settings)?,
+        None => a.build.clone(),
+    };
+    let opts = build.options(None)?;
     let signal = on_signals(&opts.interrupt)?;
     let mut progress = Phases::new(a.quiet);
-    let made = make_plan(
-        &a.inputs,
-        a.subsets,
-        a.build.settings(),
-        &opts,
-        &mut progress,
-    );
+    let made = match (&old, a.subsets) {
+        (Some(old), _) => update_plan(old, &opts, &mut progress),
+        (None, Some(n)) => make_plan(&a.inputs, n, build.settings(), &opts, &mut progress),
+        (None, None) => return Err(CliError::Usage("--subsets is required".into())),
+    };
     let (plan, report) = made.map_err(|e| interrupted(e, signal.load(Ordering::Relaxed)))?;
     write_plan(&plan, &a.output)?;
     match a.json {
@@ -119,8 +139,26 @@ fn render_plan(path: &Path, r: &PlanReport) -> String {
         r.seconds
     );
     for (i, n) in r.records.iter().enumerate() {
-        let _ = writeln!(o, "subset {i:<4} {n} triangle records");
+        let build = match r.rebuild.contains(&(i as u32)) {
+            true => "build",
+            false => "reuse",
+        };
+        let _ = writeln!(o, "subset {i:<4} {n} triangle records: {build}");
     }
+    if let Some(why) = &r.replanned {
+        let _ = writeln!(
+            o,
+            "replanned  the cuts could not stay ({why}): every subset is built again"
+        );
+    }
+    let list: Vec<String> = r.rebuild.iter().map(u32::to_string).collect();
+    let _ = writeln!(
+        o,
+        "build      {} of {} subsets: {}",
+        r.rebuild.len(),
+        r.subsets,
+        list.join(",")
+    );
     o
 }
 
@@ -176,13 +214,16 @@ fn render_subset(r: &SubsetReport) -> String {
 
 pub fn run_merge(a: &MergeArgs) -> CliResult {
     use_threads(a.threads)?;
-    let first = a.parts.first().ok_or(SubsetError::NoSubsets)?;
-    let plan = plan_of_subset(first)?;
+    let given = a.plan.as_deref().map(Plan::read).transpose()?;
+    let plan = match &given {
+        Some(p) => p.clone(),
+        None => plan_of_subset(a.parts.first().ok_or(SubsetError::NoSubsets)?)?,
+    };
     let build = BuildArgs::from_settings(&plan.settings)?;
     let opts = build.options(None)?;
     let signal = on_signals(&opts.interrupt)?;
     let mut progress = Phases::new(a.quiet);
-    let r = merge(&a.parts, &a.output, &opts, &mut progress)
+    let r = merge(&a.parts, &a.output, &opts, given.as_ref(), &mut progress)
         .map_err(|e| interrupted(e, signal.load(Ordering::Relaxed)))?;
     write_report_json(a.report_json.as_deref(), &r)?;
     out!("{}", render_merge(&r))?;

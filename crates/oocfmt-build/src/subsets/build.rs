@@ -159,7 +159,8 @@ impl Job<'_> {
         let base = self.dir.join("cell.soup");
         let store = CellStore::new(plan, &self.top.tree.nodes, cell, &base, disk.clone())?;
         let inputs: Vec<PathBuf> = plan.inputs.iter().map(|i| PathBuf::from(&i.path)).collect();
-        let intaken = import_all(&inputs, store, plan.origin(), opts, "import", progress)?;
+        let origin = plan.origin();
+        let intaken = import_all(&inputs, store, origin, opts, "import", progress, |_, _| {})?;
         let (triangles_in, triangles_out) =
             (intaken.report.triangles_in, intaken.report.triangles_out);
         let scene = intaken.store.tally.scene(&intaken);

@@ -1,7 +1,9 @@
 //! The plan's cells: grown from a sample of centroids by median cuts, then counted and fitted
 //! by routing every triangle down the cuts as the out-of-core split routes it.
 
+use super::plan::{Plan, PlanNode};
 use super::route::Tally;
+use super::SubsetError;
 use crate::layout::plan::is_lod_depth;
 use crate::lod::rlod::{PlaneFit, PlaneMoments};
 use crate::ooc::chunk::SceneFacts;
@@ -78,6 +80,54 @@ impl CellTree {
         CellTree { nodes }
     }
 
+    /// The cut tree of `plan`, its counts cleared, for routing again: a side the plan has no
+    /// node for becomes an empty cell, which a routed triangle may fill.
+    pub fn from_plan(plan: &Plan) -> Result<CellTree, SubsetError> {
+        let mut tree = CellTree { nodes: Vec::new() };
+        tree.add(plan, Some(0), plan.scene_bounds(), 0)?;
+        Ok(tree)
+    }
+
+    /// Adds plan node `node` (none: an empty cell) with its subtree; returns its index.
+    fn add(
+        &mut self,
+        plan: &Plan,
+        node: Option<u32>,
+        cell: Bounds,
+        depth: u32,
+    ) -> Result<usize, SubsetError> {
+        let k = self.nodes.len();
+        self.nodes.push(Cell {
+            cell,
+            depth,
+            kind: CellKind::Leaf { records: 0 },
+        });
+        let Some(n) = node else { return Ok(k) };
+        let bad = || SubsetError::Internal("a checked plan's node is missing");
+        if let PlanNode::Cut {
+            axis,
+            split_bits,
+            children,
+        } = *plan.nodes.get(n as usize).ok_or_else(bad)?
+        {
+            let cut = Cut {
+                cell,
+                axis: usize::from(axis),
+                mid: f32::from_bits(split_bits),
+            };
+            let (lo, hi) = cell.split(cut.axis, cut.mid);
+            let l = self.add(plan, children[0], lo, depth + 1)?;
+            let r = self.add(plan, children[1], hi, depth + 1)?;
+            let slot = self.nodes.get_mut(k).ok_or_else(bad)?;
+            slot.kind = CellKind::Inner {
+                cut,
+                children: [l, r],
+                fit: None,
+            };
+        }
+        Ok(k)
+    }
+
     /// Records routed to the cells below node `k`.
     pub fn records_below(&self, k: usize) -> u64 {
         let mut total = 0;
@@ -148,11 +198,22 @@ impl Store for SampleStore {
     }
 }
 
+/// What the second pass found: the tree counted and fitted, the scene's tally, and the
+/// leaves each input reached.
+pub(super) struct Routed {
+    pub tree: CellTree,
+    pub tally: Tally,
+    pub reach: Vec<std::collections::BTreeSet<usize>>,
+}
+
 /// The second pass's store: every triangle routed down the cuts, its copies counted in the
 /// leaves and added to the R-LOD moments of the LOD nodes among the cuts, in input order.
 pub(super) struct RouteStore<'a> {
     pub tree: CellTree,
     pub tally: Tally,
+    /// The input being read, and the leaves each input's triangles reached.
+    pub input: usize,
+    pub reach: Vec<std::collections::BTreeSet<usize>>,
     moments: Vec<Option<PlaneMoments>>,
     facts: &'a SceneFacts,
     stack: Vec<(usize, SoupTriangle)>,
@@ -175,6 +236,8 @@ impl<'a> RouteStore<'a> {
         RouteStore {
             tree,
             tally: Tally::default(),
+            input: 0,
+            reach: Vec::new(),
             moments,
             facts,
             stack: Vec::new(),
@@ -182,13 +245,17 @@ impl<'a> RouteStore<'a> {
     }
 
     /// The tree with every LOD cut's plane fitted.
-    pub fn finish(mut self) -> (CellTree, Tally) {
+    pub fn finish(mut self) -> Routed {
         for (cell, m) in self.tree.nodes.iter_mut().zip(&self.moments) {
             if let (CellKind::Inner { fit, .. }, Some(m)) = (&mut cell.kind, m) {
                 *fit = Some(m.plane());
             }
         }
-        (self.tree, self.tally)
+        Routed {
+            tree: self.tree,
+            tally: self.tally,
+            reach: self.reach,
+        }
     }
 }
 
@@ -208,7 +275,15 @@ impl Store for RouteStore<'_> {
                 continue;
             };
             match &mut cell.kind {
-                CellKind::Leaf { records } => *records += 1,
+                CellKind::Leaf { records } => {
+                    *records += 1;
+                    if self.reach.len() <= self.input {
+                        self.reach.resize_with(self.input + 1, Default::default);
+                    }
+                    if let Some(r) = self.reach.get_mut(self.input) {
+                        r.insert(k);
+                    }
+                }
                 CellKind::Inner { cut, children, .. } => {
                     if let Some(Some(m)) = self.moments.get_mut(k) {
                         let tri = &t.triangle;

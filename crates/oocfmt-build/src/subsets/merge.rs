@@ -9,18 +9,18 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::build::{folder_of, plan_layout};
-use super::file::{Body, SubsetFile, TopLodRecord};
+use super::file::{Body, ChunkRecord, SubsetFile, TopLodRecord};
 use super::plan::{Plan, PlanTop};
 use super::{watched, SubsetError};
 use crate::convert::{describe, ConvertOptions, BYTES_PER_TRIANGLE_IN_CORE};
 use crate::layout::LayoutOptions;
 use crate::lod::Seen;
 use crate::ooc::assemble::BlockSource;
-use crate::ooc::chunk::{ChunkOut, SpilledBlock};
+use crate::ooc::chunk::SpilledBlock;
 use crate::ooc::disk::SpillDisk;
 use crate::ooc::split::{Chunk, TopNode, TopTree};
 use crate::ooc::top::{record_rays, top_lod_nodes, TopLod};
-use crate::ooc::{Chunking, Chunks, OocBuild, OocError};
+use crate::ooc::{Chunking, Chunks, OocBuild, OocError, SceneInfo};
 use crate::progress::Progress;
 use crate::report::{peak_memory, ConvertReport, PhaseClock};
 
@@ -59,20 +59,34 @@ fn foreign(f: &SubsetFile, what: &str) -> SubsetError {
 }
 
 /// Merges the subset files `parts` (every subset of one plan, once, in any order) into the
-/// container `output`. `opts` must be the plan's settings. On failure nothing is written.
+/// container `output`. The plan is `plan` when given (an updated plan names the subsets it
+/// takes from earlier builds), else the one the files were built from. `opts` must be the
+/// plan's settings. On failure nothing is written.
 pub fn merge(
     parts: &[PathBuf],
     output: &Path,
     opts: &ConvertOptions,
+    plan: Option<&Plan>,
     progress: &mut dyn Progress,
 ) -> Result<MergeReport, SubsetError> {
     let start = Instant::now();
-    let (plan, files) = open_all(parts)?;
+    let (plan, mut files) = open_all(parts, plan)?;
     let top = plan.top()?;
-    let joined = join(&plan, &top, &files, &opts.layout)?;
+    let joined = join(&plan, &top, &mut files, &opts.layout)?;
+    // The scene's tables are every file's (checked); its count is the plan's, which a file
+    // reused from an earlier plan does not know.
     let first = files.first().ok_or(SubsetError::NoSubsets)?;
-    let scene = first.body.scene.clone();
-    let (triangles_in, triangles_out) = (first.body.triangles_in, first.body.triangles_out);
+    let scene = SceneInfo {
+        count: plan.triangles,
+        bounds: plan.scene_bounds(),
+        ..first.body.scene.clone()
+    };
+    let current = files
+        .iter()
+        .find(|f| format!("{:08x}", f.header.plan_identity) == plan.identity);
+    let (triangles_in, triangles_out) = current.map_or((plan.triangles, plan.triangles), |f| {
+        (f.body.triangles_in, f.body.triangles_out)
+    });
     let disk = Arc::new(SpillDisk::new());
     let layout = plan_layout(&plan, opts);
     let chunking = Chunking {
@@ -122,25 +136,31 @@ pub fn merge(
 
 /// Opens every subset file and checks that they are the subsets of one plan, each once;
 /// returns the plan and the files in subset order.
-fn open_all(parts: &[PathBuf]) -> Result<(Plan, Vec<SubsetFile>), SubsetError> {
+fn open_all(
+    parts: &[PathBuf],
+    given: Option<&Plan>,
+) -> Result<(Plan, Vec<SubsetFile>), SubsetError> {
     let mut files = parts
         .iter()
         .map(|p| SubsetFile::open(p))
         .collect::<Result<Vec<_>, _>>()?;
     let first = files.first().ok_or(SubsetError::NoSubsets)?;
-    let plan = plan_of(first)?;
+    let plan = match given {
+        Some(p) => p.clone(),
+        None => newest_plan(&files)?,
+    };
     let mut slots: Vec<Option<&SubsetFile>> = vec![None; plan.subsets as usize];
     for f in &files {
-        if f.body.plan != first.body.plan || f.header.plan_identity != first.header.plan_identity {
+        let own = plan_of(f)?;
+        let expected = plan.identity_for(f.header.index);
+        if !plan.takes(f.header.index, &own.identity) || !own.same_cuts(&plan) {
             let what = format!(
-                "a subset of another plan than {}'s (plan {:08x}, not {})",
-                first.path.display(),
-                f.header.plan_identity,
-                plan.identity
+                "a subset of another plan (plan {}, where plan {} takes subset {} from plan {expected})",
+                own.identity, plan.identity, f.header.index
             );
             return Err(foreign(f, &what));
         }
-        if f.body.scene != first.body.scene {
+        if !same_tables(&f.body.scene, &first.body.scene) {
             return Err(foreign(
                 f,
                 "its scene tables differ from the other subsets'",
@@ -175,6 +195,57 @@ fn open_all(parts: &[PathBuf]) -> Result<(Plan, Vec<SubsetFile>), SubsetError> {
     Ok((plan, files))
 }
 
+/// The plan of the files that takes every file: the files' own plan, or after an update the
+/// newest plan, which names the subsets it takes from earlier ones.
+fn newest_plan(files: &[SubsetFile]) -> Result<Plan, SubsetError> {
+    let mut plans: Vec<Plan> = Vec::new();
+    for f in files {
+        let p = plan_of(f)?;
+        if !plans.iter().any(|q| q.identity == p.identity) {
+            plans.push(p);
+        }
+    }
+    let takes_all = |p: &Plan| {
+        files
+            .iter()
+            .all(|f| p.takes(f.header.index, &format!("{:08x}", f.header.plan_identity)))
+    };
+    match plans.iter().find(|p| takes_all(p)) {
+        Some(p) => Ok(p.clone()),
+        None => {
+            let a = files.first().ok_or(SubsetError::NoSubsets)?;
+            let other = |f: &&SubsetFile| f.header.plan_identity != a.header.plan_identity;
+            let b = files.iter().find(other).unwrap_or(a);
+            Err(foreign(
+                b,
+                &format!(
+                    "a subset of another plan than {}'s (plan {:08x}, not {:08x})",
+                    a.path.display(),
+                    b.header.plan_identity,
+                    a.header.plan_identity
+                ),
+            ))
+        }
+    }
+}
+
+/// Whether two subsets number materials and parts alike and have the same attributes.
+fn same_tables(a: &SceneInfo, b: &SceneInfo) -> bool {
+    (
+        &a.materials,
+        &a.used_materials,
+        &a.parts,
+        a.normals,
+        a.colours,
+    ) == (
+        &b.materials,
+        &b.used_materials,
+        &b.parts,
+        b.normals,
+        b.colours,
+    )
+}
+
 /// The subsets joined into the out-of-core build's state after its chunks.
 struct Joined {
     tree: TopTree,
@@ -188,7 +259,7 @@ struct Joined {
 fn join(
     plan: &Plan,
     top: &PlanTop,
-    files: &[SubsetFile],
+    files: &mut [SubsetFile],
     layout: &LayoutOptions,
 ) -> Result<Joined, SubsetError> {
     let p = top.plan_nodes;
@@ -209,17 +280,20 @@ fn join(
         chunk_file: Vec::new(),
     };
     let mut answers: BTreeMap<usize, Vec<Option<(f64, Seen)>>> = BTreeMap::new();
-    for (s, f) in files.iter().enumerate() {
+    for (s, f) in files.iter_mut().enumerate() {
         let cell = top
             .cells
             .get(s)
             .ok_or(SubsetError::Internal("a subset has no cell"))?;
+        // The chunks move into the joined build; the rest of the body stays for the checks.
+        let chunks = std::mem::take(&mut f.body.chunks);
+        let f = &*f;
         let body = &f.body;
         let number = Renumber {
             plan_nodes: p,
             node_base: j.tree.nodes.len(),
             chunk_base: j.chunks.outs.len(),
-            chunks: body.chunks.len(),
+            chunks: chunks.len(),
             own: cell.node,
         };
         let bad = |what: &str| foreign(f, what);
@@ -235,7 +309,8 @@ fn join(
                 .ok_or_else(|| bad("a node is out of range"))?;
             j.tree.nodes.push(n);
         }
-        add_chunks(&mut j, body, &number, s).ok_or_else(|| bad("a chunk is out of range"))?;
+        add_chunks(&mut j, chunks, body, &number, s)
+            .ok_or_else(|| bad("a chunk is out of range"))?;
         for &(node, fit) in &body.planes {
             let node = number
                 .own_node(node)
@@ -291,8 +366,14 @@ fn join(
 }
 
 /// Adds a subset's chunks, their proxies numbered on from the subsets' before.
-fn add_chunks(j: &mut Joined, body: &Body, number: &Renumber, file: usize) -> Option<()> {
-    for c in &body.chunks {
+fn add_chunks(
+    j: &mut Joined,
+    chunks: Vec<ChunkRecord>,
+    body: &Body,
+    number: &Renumber,
+    file: usize,
+) -> Option<()> {
+    for c in chunks {
         let ancestors = c
             .ancestors
             .iter()
@@ -305,7 +386,7 @@ fn add_chunks(j: &mut Joined, body: &Body, number: &Renumber, file: usize) -> Op
             depth: c.depth,
             ancestors,
         });
-        let mut out = clone_out(&c.out);
+        let mut out = c.out;
         j.chunks.proxies.push(std::mem::take(&mut out.proxies));
         j.chunks.outs.push(out);
         j.chunks.proxy_shift.push(j.chunks.proxy_count);
@@ -316,19 +397,6 @@ fn add_chunks(j: &mut Joined, body: &Body, number: &Renumber, file: usize) -> Op
     }
     j.chunks.proxy_count = j.chunks.proxy_count.checked_add(body.proxy_count)?;
     Some(())
-}
-
-fn clone_out(o: &ChunkOut) -> ChunkOut {
-    ChunkOut {
-        upper: o.upper.clone(),
-        treelet_blocks: o.treelet_blocks.clone(),
-        triangle_blocks: o.triangle_blocks.clone(),
-        proxies: o.proxies.clone(),
-        counts: o.counts,
-        area: o.area,
-        plane_pieces: o.plane_pieces.clone(),
-        parts: o.parts.clone(),
-    }
 }
 
 /// A LOD node of the subset's own, its rays answered.

@@ -30,7 +30,7 @@ pub use build::{build_subset, SubsetReport};
 pub use file::{HEADER_LEN as SUBSET_HEADER_LEN, MAGIC as SUBSET_MAGIC, VERSION as SUBSET_VERSION};
 pub use merge::{merge, plan_of_subset, MergeReport};
 pub use plan::Plan;
-pub use planner::{make_plan, PlanReport};
+pub use planner::{make_plan, update_plan, PlanReport};
 
 use crate::convert::{ConvertError, ConvertOptions};
 use crate::interrupt::{self, WatchedProgress};
@@ -231,7 +231,7 @@ pub fn verify_subset(path: &Path) -> Result<SubsetCheck, SubsetError> {
     })
 }
 
-/// Builds every subset of `plan` in turn into a temporary folder, then merges them into
+/// Builds every subset of `plan` in turn into a spill folder, then merges them into
 /// `output`: the single-machine form of a split build, byte for byte what merging the same
 /// subsets built anywhere gives. `opts` must be the plan's settings.
 pub fn convert_plan(
@@ -244,13 +244,15 @@ pub fn convert_plan(
         .tmp_dir
         .clone()
         .unwrap_or_else(|| build::folder_of(output).to_path_buf());
-    let dir = tempfile::Builder::new()
-        .prefix(".oocfmt-subsets-")
-        .tempdir_in(&parent)
-        .map_err(|source| SubsetError::Io {
-            path: parent.display().to_string(),
-            source,
-        })?;
+    // A spill folder, locked for the build's life: a later build removes it if this one is
+    // killed.
+    for stale in crate::spill_dir::clear_stale(&parent) {
+        progress.warn(&stale.to_string());
+    }
+    let dir = crate::spill_dir::SpillDir::create(&parent).map_err(|source| SubsetError::Io {
+        path: parent.display().to_string(),
+        source,
+    })?;
     let start = std::time::Instant::now();
     let mut parts: Vec<PathBuf> = Vec::new();
     let mut peak_disk = 0u64;
@@ -262,7 +264,7 @@ pub fn convert_plan(
         parts.push(part);
     }
     let subsets = start.elapsed().as_secs_f64();
-    let mut report = merge(&parts, output, opts, progress)?.convert;
+    let mut report = merge(&parts, output, opts, Some(plan), progress)?.convert;
     report.phases.insert(
         0,
         crate::report::PhaseTime {

@@ -44,10 +44,26 @@ pub struct Plan {
     pub triangles: u64,
     /// The scene's bounds as f32 bits.
     pub bounds_bits: [[u32; 3]; 2],
+    /// 8 hex digits: CRC-32C of the scene's tables ([`tables_digest`]): what every subset
+    /// numbers materials and parts by.
+    pub tables: String,
     /// The cut tree in preorder: node 0 is the scene root.
     pub nodes: Vec<PlanNode>,
     /// The R-LOD planes of the LOD nodes among the cuts (none without R-LODs).
     pub planes: Vec<PlanPlane>,
+    /// Subsets whose files, built from an earlier plan, this plan takes as they are
+    /// (`plan --update`): no input that reaches them changed, nor a plane above them.
+    pub reuse: Vec<PlanReuse>,
+}
+
+/// A subset an updated plan takes from an earlier plan's build.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanReuse {
+    /// The subset.
+    pub index: u32,
+    /// The identity of the plan its file was built from.
+    pub plan: String,
 }
 
 /// One input as planned.
@@ -60,6 +76,8 @@ pub struct PlanInput {
     pub bytes: u64,
     /// CRC-32C of its bytes, 8 hex digits.
     pub crc32c: String,
+    /// The subsets its triangles reach, in order.
+    pub subsets: Vec<u32>,
 }
 
 /// A node of the cut tree.
@@ -190,6 +208,46 @@ impl Plan {
         self.origin_bits.map(f64::from_bits)
     }
 
+    /// The identity of the plan the file of subset `index` must be built from: this plan's,
+    /// or an earlier one's that this plan reuses.
+    pub fn identity_for(&self, index: u32) -> &str {
+        self.reuse
+            .iter()
+            .find(|r| r.index == index)
+            .map_or(self.identity.as_str(), |r| r.plan.as_str())
+    }
+
+    /// Whether a file of subset `index` built from the plan `identity` belongs to this plan:
+    /// built from it, or from the earlier plan it takes that subset from.
+    pub fn takes(&self, index: u32, identity: &str) -> bool {
+        identity == self.identity || identity == self.identity_for(index)
+    }
+
+    /// Whether `other` has this plan's cuts, subsets, bounds, inputs and settings (what its
+    /// counts, checksums and planes say aside).
+    pub fn same_cuts(&self, other: &Plan) -> bool {
+        let shape = |p: &Plan| -> Vec<PlanNode> {
+            p.nodes
+                .iter()
+                .map(|n| match n {
+                    PlanNode::Subset { index, .. } => PlanNode::Subset {
+                        index: *index,
+                        records: 0,
+                    },
+                    cut => cut.clone(),
+                })
+                .collect()
+        };
+        let paths = |p: &Plan| -> Vec<String> { p.inputs.iter().map(|i| i.path.clone()).collect() };
+        self.subsets == other.subsets
+            && self.bounds_bits == other.bounds_bits
+            && self.origin_bits == other.origin_bits
+            && self.settings == other.settings
+            && self.tables == other.tables
+            && paths(self) == paths(other)
+            && shape(self) == shape(other)
+    }
+
     /// The identity as a number.
     pub fn identity_number(&self) -> Result<u32, SubsetError> {
         u32::from_str_radix(&self.identity, 16)
@@ -264,6 +322,13 @@ impl Plan {
         }
         if self.subsets == 0 || self.subsets > MAX_SUBSETS {
             return Err(self.bad("subsets out of range"));
+        }
+        let mut reused = std::collections::BTreeSet::new();
+        for r in &self.reuse {
+            let hex = r.plan.len() == 8 && r.plan.bytes().all(|b| b.is_ascii_hexdigit());
+            if r.index >= self.subsets || !reused.insert(r.index) || !hex {
+                return Err(self.bad("a reused subset is out of range, repeated or unnamed"));
+            }
         }
         self.top().map(|_| ())
     }
@@ -365,57 +430,75 @@ impl Plan {
 }
 
 /// The plan's nodes, in preorder, from the grown and counted cell tree: empty cells dropped,
-/// the rest numbered left to right. Returns the nodes, the planes and the subsets' count.
-pub(super) fn plan_nodes(
-    tree: &CellTree,
-) -> Result<(Vec<PlanNode>, Vec<PlanPlane>, u32), SubsetError> {
-    let mut nodes = Vec::new();
-    let mut planes = Vec::new();
-    let mut subsets = 0u32;
-    emit(tree, 0, &mut nodes, &mut planes, &mut subsets)?;
-    Ok((nodes, planes, subsets))
+/// the rest numbered left to right.
+pub(super) struct Emitted {
+    pub nodes: Vec<PlanNode>,
+    pub planes: Vec<PlanPlane>,
+    pub subsets: u32,
+    /// The subset of each cell of the tree that became one.
+    pub subset_of: std::collections::BTreeMap<usize, u32>,
+}
+
+pub(super) fn plan_nodes(tree: &CellTree) -> Result<Emitted, SubsetError> {
+    let mut e = Emitted {
+        nodes: Vec::new(),
+        planes: Vec::new(),
+        subsets: 0,
+        subset_of: std::collections::BTreeMap::new(),
+    };
+    emit(tree, 0, &mut e)?;
+    Ok(e)
 }
 
 /// Appends cell `k`'s subtree in preorder; returns its node, or `None` for an empty one.
-fn emit(
-    tree: &CellTree,
-    k: usize,
-    nodes: &mut Vec<PlanNode>,
-    planes: &mut Vec<PlanPlane>,
-    subsets: &mut u32,
-) -> Result<Option<u32>, SubsetError> {
+fn emit(tree: &CellTree, k: usize, e: &mut Emitted) -> Result<Option<u32>, SubsetError> {
     if tree.records_below(k) == 0 {
         return Ok(None);
     }
-    let id = u32::try_from(nodes.len()).map_err(|_| SubsetError::TooManySubsets)?;
+    let id = u32::try_from(e.nodes.len()).map_err(|_| SubsetError::TooManySubsets)?;
     let Some(cell) = tree.nodes.get(k) else {
         return Ok(None);
     };
     match &cell.kind {
         CellKind::Leaf { records } => {
-            nodes.push(PlanNode::Subset {
-                index: *subsets,
+            e.nodes.push(PlanNode::Subset {
+                index: e.subsets,
                 records: *records,
             });
-            *subsets += 1;
+            e.subset_of.insert(k, e.subsets);
+            e.subsets += 1;
         }
         CellKind::Inner { cut, children, fit } => {
-            nodes.push(PlanNode::Cut {
+            e.nodes.push(PlanNode::Cut {
                 axis: cut.axis as u8,
                 split_bits: cut.mid.to_bits(),
                 children: [None, None],
             });
             if let Some(f) = fit {
-                planes.push(PlanPlane::of(id, f));
+                e.planes.push(PlanPlane::of(id, f));
             }
             let mut kids = [None, None];
             for (slot, &c) in kids.iter_mut().zip(children) {
-                *slot = emit(tree, c, nodes, planes, subsets)?;
+                *slot = emit(tree, c, e)?;
             }
-            if let Some(PlanNode::Cut { children, .. }) = nodes.get_mut(id as usize) {
+            if let Some(PlanNode::Cut { children, .. }) = e.nodes.get_mut(id as usize) {
                 *children = kids;
             }
         }
     }
     Ok(Some(id))
+}
+
+/// CRC-32C of what every subset numbers materials and parts by, and the attributes the scene
+/// has: a plan's `tables`.
+pub(super) fn tables_digest(scene: &crate::ooc::SceneInfo) -> Result<String, SubsetError> {
+    let tables = (
+        &scene.materials,
+        &scene.used_materials,
+        &scene.parts,
+        scene.normals,
+        scene.colours,
+    );
+    let bytes = postcard::to_stdvec(&tables).map_err(|e| SubsetError::Json(e.to_string()))?;
+    Ok(format!("{:08x}", crc32c::crc32c(&bytes)))
 }

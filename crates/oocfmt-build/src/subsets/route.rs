@@ -63,7 +63,8 @@ impl Tally {
 }
 
 /// Imports every input, in order, into an intake in front of `store`, as `convert` would:
-/// positions relative to `origin`, each file a part when there are several.
+/// positions relative to `origin`, each file a part when there are several. `on_input` is
+/// told the store and each input's index before it is read.
 pub(super) fn import_all<S: Store>(
     inputs: &[PathBuf],
     store: S,
@@ -71,12 +72,14 @@ pub(super) fn import_all<S: Store>(
     opts: &ConvertOptions,
     phase: &str,
     progress: &mut dyn Progress,
+    mut on_input: impl FnMut(&mut S, usize),
 ) -> Result<Intaken<S>, SubsetError> {
     let mut sink = Intake::with_store(opts.strict, store)
         .with_origin(origin)
         .with_file_parts(inputs.len() > 1);
     progress.phase(phase, Some(inputs.len() as u64));
     for (i, path) in inputs.iter().enumerate() {
+        on_input(sink.store_mut(), i);
         import_one(
             path,
             &mut WatchedSink::new(&mut sink, &opts.interrupt),

@@ -139,6 +139,11 @@ impl<S> Intake<S> {
         }
     }
 
+    /// The store behind the intake.
+    pub fn store_mut(&mut self) -> &mut S {
+        &mut self.store
+    }
+
     /// The parts declared so far.
     pub fn parts(&self) -> &[PartDef] {
         &self.parts
