@@ -12,6 +12,13 @@ full build).
     cargo build --release -p oocfmt-cli
     python3 tools/bench-subsets.py --size 1e7 --subsets 4,8 --mem-limit 256M
     python3 tools/bench-subsets.py --size 1e8 --subsets 4,8 --mem-limit 2G --dir /big/scratch
+
+With --assembly K it measures an update instead: K Mandelbulbs of size/K triangles side by side
+along x, one file each, planned in the first --subsets count; then one vertex of the middle file
+moves, and `plan --update`, the subsets it lists and the merge with the others reused are timed
+against a full rebuild from the new plan (plan, every subset, merge), whose bytes they must equal.
+
+    python3 tools/bench-subsets.py --size 1e7 --assembly 8 --subsets 16 --mem-limit 256M
 """
 
 import argparse
@@ -46,10 +53,14 @@ def main():
     p.add_argument("--mem-limit", default="256M", help="--mem-limit of every build")
     p.add_argument("--dir", default=None, help="scratch folder (default: a temporary one)")
     p.add_argument("--check", action="store_true", help="also compare with `convert --plan`")
+    p.add_argument("--assembly", type=int, default=0, help="measure an update of a K-file assembly")
     a = p.parse_args()
     require_binary()
     work = a.dir or tempfile.mkdtemp(prefix="oocfmt-subsets-")
     size = int(float(a.size))
+    if a.assembly:
+        update(a, work, size)
+        return
     obj = os.path.join(work, f"mandelbulb-{size}.obj")
     if not os.path.exists(obj):
         run(["gen", "mandelbulb", "--tris", str(size), "-o", obj, "--quiet"])
@@ -95,6 +106,88 @@ def main():
               f"| {mr['convert']['seconds']:.1f} | {mib(mr['convert'].get('peak_memory_bytes'))} "
               f"| {total:.1f} | {total / plain['seconds']:.2f} | {mr['copied_blocks']} | {mr['copied_bytes']} |")
         sys.stdout.flush()
+
+
+def assembly(work, size, k):
+    """K copies of a Mandelbulb of size/K triangles, the i-th moved 2.5 * i along x."""
+    one = os.path.join(work, f"mandelbulb-{size // k}.obj")
+    if not os.path.exists(one):
+        run(["gen", "mandelbulb", "--tris", str(size // k), "-o", one, "--quiet"])
+    files = []
+    for i in range(k):
+        path = os.path.join(work, f"part{i}.obj")
+        with open(one) as src, open(path, "w") as dst:
+            for line in src:
+                if line.startswith("v "):
+                    x, y, z = line.split()[1:4]
+                    line = f"v {float(x) + 2.5 * i!r} {y} {z}\n"
+                dst.write(line)
+        files.append(path)
+    return files
+
+
+def nudge(path):
+    """Moves the first vertex of `path` a little towards its neighbours (within the bounds)."""
+    with open(path) as f:
+        lines = f.readlines()
+    for n, line in enumerate(lines):
+        if line.startswith("v "):
+            x, y, z = (float(c) for c in line.split()[1:4])
+            lines[n] = f"v {x!r} {y!r} {z * 0.99!r}\n"
+            break
+    with open(path, "w") as f:
+        f.writelines(lines)
+
+
+def build(plan, work, tag, subsets):
+    """Builds `subsets` of `plan`; returns their files and the seconds."""
+    parts, secs = {}, 0.0
+    for i in subsets:
+        part = os.path.join(work, f"{tag}-{i}.oocfp")
+        r, _ = report(["convert", "--plan", plan, "--subset", str(i), "-o", part], os.path.join(work, "sub.json"))
+        parts[i] = part
+        secs += r["seconds"]
+    return parts, secs
+
+
+def update(a, work, size):
+    k = a.assembly
+    n = int(a.subsets.split(",")[0])
+    files = assembly(work, size, k)
+    print(f"machine: {machine()}")
+    print(f"assembly: {k} Mandelbulbs of {size // k} triangles, {n} subsets, --mem-limit {a.mem_limit}\n")
+    old = os.path.join(work, "old.json")
+    run(["plan", *files, "--subsets", str(n), "--mem-limit", a.mem_limit, "-o", old, "--quiet"])
+    with open(old) as f:
+        m = json.load(f)["subsets"]
+    old_parts, _ = build(old, work, "old", range(m))
+    nudge(files[k // 2])
+    new = os.path.join(work, "new.json")
+    t = time.monotonic()
+    out = run(["plan", "--update", old, "-o", new, "--json", "--quiet"])
+    update_plan_s = time.monotonic() - t
+    rebuild = json.loads(out)["rebuild"]
+    new_parts, rebuild_s = build(new, work, "new", rebuild)
+    parts = [new_parts.get(i, old_parts[i]) for i in range(m)]
+    updated = os.path.join(work, "updated.oocf")
+    mr, _ = report(["merge", "--plan", new, *parts, "-o", updated], os.path.join(work, "merge.json"))
+    update_s = update_plan_s + rebuild_s + mr["convert"]["seconds"]
+    # The full rebuild from the same new plan: a fresh plan's time, every subset, the merge.
+    t = time.monotonic()
+    run(["plan", *files, "--subsets", str(n), "--mem-limit", a.mem_limit, "-o", os.path.join(work, "fresh.json"), "--quiet"])
+    plan_s = time.monotonic() - t
+    all_parts, all_s = build(new, work, "all", range(m))
+    full = os.path.join(work, "full.oocf")
+    fr, _ = report(["merge", "--plan", new, *[all_parts[i] for i in range(m)], "-o", full], os.path.join(work, "merge.json"))
+    full_s = plan_s + all_s + fr["convert"]["seconds"]
+    same = subprocess.run(["cmp", "-s", updated, full]).returncode == 0
+    print("| | plan s | subsets built | subsets s | merge s | total s |")
+    print("|--|--:|--:|--:|--:|--:|")
+    print(f"| update | {update_plan_s:.1f} | {len(rebuild)} of {m} | {rebuild_s:.1f} | {mr['convert']['seconds']:.1f} | {update_s:.1f} |")
+    print(f"| full rebuild | {plan_s:.1f} | {m} of {m} | {all_s:.1f} | {fr['convert']['seconds']:.1f} | {full_s:.1f} |")
+    print(f"\nupdate / full: {update_s / full_s:.2f}; the two containers are {'identical' if same else 'DIFFERENT'}")
+    if not same:
+        sys.exit(1)
 
 
 if __name__ == "__main__":

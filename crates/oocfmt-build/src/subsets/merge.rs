@@ -17,8 +17,9 @@ use crate::layout::LayoutOptions;
 use crate::lod::Seen;
 use crate::ooc::assemble::BlockSource;
 use crate::ooc::chunk::SpilledBlock;
+use crate::ooc::chunk::UpperNode;
 use crate::ooc::disk::SpillDisk;
-use crate::ooc::split::{Chunk, TopNode, TopTree};
+use crate::ooc::split::{Chunk, TopNode, TopTree, MAX_SPLIT_DEPTH};
 use crate::ooc::top::{record_rays, top_lod_nodes, TopLod};
 use crate::ooc::{Chunking, Chunks, OocBuild, OocError, SceneInfo};
 use crate::progress::Progress;
@@ -81,12 +82,6 @@ pub fn merge(
         bounds: plan.scene_bounds(),
         ..first.body.scene.clone()
     };
-    let current = files
-        .iter()
-        .find(|f| format!("{:08x}", f.header.plan_identity) == plan.identity);
-    let (triangles_in, triangles_out) = current.map_or((plan.triangles, plan.triangles), |f| {
-        (f.body.triangles_in, f.body.triangles_out)
-    });
     let disk = Arc::new(SpillDisk::new());
     let layout = plan_layout(&plan, opts);
     let chunking = Chunking {
@@ -116,13 +111,11 @@ pub fn merge(
         )?)
     })?;
     let mut convert = describe(output, written.identity).map_err(Box::new)?;
-    convert.import.files = plan.inputs.iter().map(|i| i.path.clone()).collect();
-    convert.import.triangles_in = triangles_in;
-    convert.import.triangles_out = triangles_out;
+    import_figures(&mut convert, &plan, &files);
     convert.out_of_core = Some(stats);
     convert.phases = clock.into_list();
     convert.seconds = start.elapsed().as_secs_f64();
-    convert.triangles_per_second = triangles_in as f64 / convert.seconds.max(1e-9);
+    convert.triangles_per_second = convert.import.triangles_in as f64 / convert.seconds.max(1e-9);
     convert.peak_memory_bytes = peak_memory();
     convert.mem_limit_bytes = opts.mem_limit;
     convert.peak_disk_bytes = convert.file_bytes;
@@ -132,6 +125,21 @@ pub fn merge(
         copied_blocks,
         copied_bytes,
     })
+}
+
+/// The import's figures in the report: the inputs, and the triangles read and kept as a subset
+/// built from `plan` itself counted them (a file reused from an earlier plan read other
+/// inputs; with none built from this plan, the plan's count stands for both).
+fn import_figures(report: &mut ConvertReport, plan: &Plan, files: &[SubsetFile]) {
+    let current = files
+        .iter()
+        .find(|f| format!("{:08x}", f.header.plan_identity) == plan.identity);
+    let (read, kept) = current.map_or((plan.triangles, plan.triangles), |f| {
+        (f.body.triangles_in, f.body.triangles_out)
+    });
+    report.import.files = plan.inputs.iter().map(|i| i.path.clone()).collect();
+    report.import.triangles_in = read;
+    report.import.triangles_out = kept;
 }
 
 /// Opens every subset file and checks that they are the subsets of one plan, each once;
@@ -374,6 +382,9 @@ fn add_chunks(
     file: usize,
 ) -> Option<()> {
     for c in chunks {
+        if !upper_is_a_tree(&c.out.upper) {
+            return None;
+        }
         let ancestors = c
             .ancestors
             .iter()
@@ -486,19 +497,43 @@ impl Renumber {
     }
 }
 
-/// Every node reached once from the root, every chunk once.
+/// Most levels of a chunk's top treelet: far above any treelet height a build uses.
+const MAX_UPPER_DEPTH: u32 = 64;
+
+/// A chunk's top treelet in preorder: every child after its parent, in the list, and not too
+/// deep, so the layout's walk of it ends.
+fn upper_is_a_tree(upper: &[UpperNode]) -> bool {
+    let mut depth = vec![0u32; upper.len()];
+    for (k, n) in upper.iter().enumerate() {
+        let UpperNode::Basic { children, .. } = n else {
+            continue;
+        };
+        let d = depth.get(k).copied().unwrap_or(0) + 1;
+        for &c in children.iter().flatten() {
+            match depth.get_mut(c) {
+                Some(slot) if c > k && d <= MAX_UPPER_DEPTH => *slot = d,
+                _ => return false,
+            }
+        }
+    }
+    true
+}
+
+/// Every node reached once from the root, no deeper than a split goes, every chunk once.
 fn check_tree(tree: &TopTree) -> Option<()> {
     let mut seen = vec![false; tree.nodes.len()];
     let mut chunks = vec![false; tree.chunks.len()];
-    let mut stack = vec![0usize];
-    while let Some(k) = stack.pop() {
+    let mut stack = vec![(0usize, 0u32)];
+    while let Some((k, depth)) = stack.pop() {
         let s = seen.get_mut(k)?;
-        if *s {
+        if *s || depth > MAX_SPLIT_DEPTH {
             return None;
         }
         *s = true;
         match tree.nodes.get(k)? {
-            TopNode::Inner { children, .. } => stack.extend(children.iter().flatten()),
+            TopNode::Inner { children, .. } => {
+                stack.extend(children.iter().flatten().map(|&c| (c, depth + 1)))
+            }
             TopNode::Chunk(c) => {
                 let s = chunks.get_mut(*c)?;
                 if *s {
