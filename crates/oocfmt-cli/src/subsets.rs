@@ -1,7 +1,6 @@
 //! `oocfmt plan`, `oocfmt convert --plan` and `oocfmt merge`: a build split into subsets that
 //! separate processes (a batch engine's array tasks) build, then merged into one container.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 
@@ -95,34 +94,12 @@ pub fn run_plan(a: &PlanArgs) -> CliResult {
         (None, None) => return Err(CliError::Usage("--subsets is required".into())),
     };
     let (plan, report) = made.map_err(|e| interrupted(e, signal.load(Ordering::Relaxed)))?;
-    write_plan(&plan, &a.output)?;
+    plan.write(&a.output)?;
     match a.json {
         true => out!("{}", to_json(&report)?)?,
         false => out!("{}", render_plan(&a.output, &report))?,
     }
     Ok(0)
-}
-
-/// Writes the plan under a temporary name in `path`'s folder, then renames it into place.
-fn write_plan(plan: &Plan, path: &Path) -> Result<(), CliError> {
-    let io = |source| CliError::Io {
-        path: path.display().to_string(),
-        source,
-    };
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".plan-")
-        .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
-        .tempfile_in(dir)
-        .map_err(io)?;
-    let text = plan.to_json()?;
-    tmp.write_all(text.as_bytes()).map_err(io)?;
-    tmp.write_all(b"\n").map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
 }
 
 fn render_plan(path: &Path, r: &PlanReport) -> String {

@@ -142,17 +142,7 @@ pub fn write(
         path: path.display().to_string(),
         source,
     };
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    // Made as an ordinary file would be (0666 less the umask), not tempfile's 0600.
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".oocfp-")
-        .suffix(".tmp")
-        .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
-        .tempfile_in(dir)
-        .map_err(io)?;
+    let mut tmp = temp_beside(path).map_err(io)?;
     spill.close();
     let file = tmp.as_file_mut();
     file.write_all(&[0u8; HEADER_LEN as usize]).map_err(io)?;
@@ -193,6 +183,18 @@ pub fn write(
     file.sync_all().map_err(io)?;
     tmp.persist(path).map_err(|e| io(e.error))?;
     Ok(at + header.body_len)
+}
+
+/// A temporary file in `path`'s folder, to be renamed to `path` once complete (and removed if
+/// dropped before), made as an ordinary file would be (0666 less the umask), not 0600.
+pub(crate) fn temp_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+    let dir = super::build::folder_of(path);
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+    tempfile::Builder::new()
+        .prefix(&format!(".{}-", name.unwrap_or_default()))
+        .suffix(".tmp")
+        .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
+        .tempfile_in(dir)
 }
 
 /// A subset file, open for the merge: its header and body checked, its blocks read on demand.

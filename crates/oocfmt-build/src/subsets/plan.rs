@@ -44,7 +44,7 @@ pub struct Plan {
     pub triangles: u64,
     /// The scene's bounds as f32 bits.
     pub bounds_bits: [[u32; 3]; 2],
-    /// 8 hex digits: CRC-32C of the scene's tables ([`tables_digest`]): what every subset
+    /// 8 hex digits: CRC-32C of the scene's tables (spec §16.1): what every subset
     /// numbers materials and parts by.
     pub tables: String,
     /// The cut tree in preorder: node 0 is the scene root.
@@ -288,6 +288,23 @@ impl Plan {
             other => other,
         })?;
         Ok(plan)
+    }
+
+    /// Writes the plan to `path` under a temporary name in its folder, then renames it into
+    /// place: a failure leaves no file under `path` and an existing one untouched.
+    pub fn write(&self, path: &Path) -> Result<(), SubsetError> {
+        use std::io::Write;
+        let io = |source| SubsetError::Io {
+            path: path.display().to_string(),
+            source,
+        };
+        let mut tmp = super::file::temp_beside(path).map_err(io)?;
+        let text = self.to_json()?;
+        tmp.write_all(text.as_bytes()).map_err(io)?;
+        tmp.write_all(b"\n").map_err(io)?;
+        tmp.as_file().sync_all().map_err(io)?;
+        tmp.persist(path).map_err(|e| io(e.error))?;
+        Ok(())
     }
 
     /// Reads and checks the plan file at `path`.
