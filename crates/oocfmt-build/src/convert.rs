@@ -298,7 +298,7 @@ fn run_convert(
     let disk = soup.disk.clone();
     let spill_bytes_per_triangle = soup.bytes_per_triangle();
     let mut import_report = soup.report.clone();
-    if let Some(w) = precision_warning(&import_report, &soup.bounds) {
+    if let Some(w) = precision_warning(&import_report, &soup.scene.bounds) {
         import_report.warnings.push(w);
     }
     let mut layout = opts.layout.clone();
@@ -306,7 +306,7 @@ fn run_convert(
     layout.origin = origin;
     layout.params.extend(opts.recentre.params(origin));
 
-    let (written, out_of_core) = if soup.count <= chunk_triangles {
+    let (written, out_of_core) = if soup.scene.count <= chunk_triangles {
         let written = build_in_core(soup, output, &opts.kd, &layout, &mut phases, progress)?;
         (written, None)
     } else {

@@ -188,8 +188,8 @@ pub(crate) fn build(
     clock: &mut PhaseClock,
     progress: &mut dyn Progress,
 ) -> Result<(WriteSummary, OocStats), OocError> {
-    let scene = soup.info();
-    let b = OocBuild::new(&scene, &soup.disk, kd, layout, &chunking)?;
+    let scene = &soup.scene;
+    let b = OocBuild::new(scene, &soup.disk, kd, layout, &chunking)?;
     let start = split::Start::root(scene.bounds);
     // The split consumes the import's run.
     let mut tree = b.split(soup.run.clone(), TopTree::default(), start, progress)?;
@@ -263,7 +263,7 @@ struct TopPlan {
 impl<'a> OocBuild<'a> {
     /// Checks the options and gathers the scene-wide facts: schema, material table, block size.
     pub(crate) fn new(
-        soup: &'a SceneInfo,
+        scene: &'a SceneInfo,
         disk: &'a Arc<SpillDisk>,
         kd: &'a KdBuildOptions,
         layout: &'a LayoutOptions,
@@ -273,36 +273,37 @@ impl<'a> OocBuild<'a> {
         let block_size = 1usize << layout.write.block_size_log2.min(20);
         oocfmt::WriteOptions::default()
             .with_block_size(1u64 << layout.write.block_size_log2.min(63))?;
-        let materials = soup.used_materials.iter().any(Option::is_some);
-        let (_, table) = compact_materials(&soup.used_materials, soup.materials.clone())?;
+        let materials = scene.used_materials.iter().any(Option::is_some);
+        let (_, table) = compact_materials(&scene.used_materials, scene.materials.clone())?;
         let schema = Schema {
-            vertex_normals: soup.normals,
-            vertex_colours: soup.colours,
+            vertex_normals: scene.normals,
+            vertex_colours: scene.colours,
             triangle_materials: materials,
             six_sample_voxels: false,
         };
         let facts = SceneFacts {
             schema: ChunkSchema {
-                normals: soup.normals,
-                colours: soup.colours,
+                normals: scene.normals,
+                colours: scene.colours,
                 materials: materials.then(|| table.clone()),
-                part_ids: soup.parts.len() > 1,
+                part_ids: scene.parts.len() > 1,
             },
             material_index: materials.then(|| {
-                soup.used_materials
+                scene
+                    .used_materials
                     .iter()
                     .enumerate()
                     .map(|(i, &m)| (m, i as u32))
                     .collect::<FxHashMap<_, _>>()
             }),
-            attrs: parts::triangle_attributes(schema.triangle_attributes(), soup.parts.len()),
+            attrs: parts::triangle_attributes(schema.triangle_attributes(), scene.parts.len()),
             block_size,
-            kinds: layout.write.lod.with_parts(soup.parts.len() >= 2),
-            parts: soup.parts.clone(),
-            unnamed: soup.parts.len().checked_sub(1).map(|p| p as u32),
+            kinds: layout.write.lod.with_parts(scene.parts.len() >= 2),
+            parts: scene.parts.clone(),
+            unnamed: scene.parts.len().checked_sub(1).map(|p| p as u32),
         };
         Ok(OocBuild {
-            scene: soup,
+            scene,
             disk,
             kd,
             layout,

@@ -4,16 +4,15 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use oocfmt::metadata::Material;
-
 use super::disk::SpillDisk;
 pub use super::record::SoupTriangle;
 use super::record::MAX_RECORD_LEN;
 use super::segments::{Run, SegmentReader, SegmentWriter};
 use super::tee::MeshTee;
 use super::OocError;
+use super::SceneInfo;
 use oocfmt_meshio::import::{
-    ImportError, ImportReport, InputTriangle, Intake, Intaken, Location, MeshSink, PartDef, Store,
+    ImportError, ImportReport, InputTriangle, Intake, Intaken, Location, MeshSink, Store,
     TriangleSink,
 };
 use oocfmt_meshio::mesh::{Bounds, Mesh};
@@ -108,21 +107,10 @@ impl Iterator for SoupReader {
 pub struct Soup {
     /// The spill run holding every kept triangle, all primary.
     pub run: Run,
-    /// Records in the spill run: the triangles kept.
-    pub count: u64,
-    /// The box of every kept triangle's corners, positions relative to the scene origin.
-    pub bounds: Bounds,
-    /// Materials as the importers added them.
-    pub materials: Vec<Material>,
-    /// The materials triangles use (`None`: no material), in order of first use: the order the
-    /// in-memory sink numbers them in, so both paths give the same material table.
-    pub used_materials: Vec<Option<u32>>,
-    /// The parts as the importers declared them (see [`Intaken::parts`]).
-    pub parts: Vec<PartDef>,
-    /// Some triangle has vertex normals.
-    pub normals: bool,
-    /// Some triangle has vertex colours.
-    pub colours: bool,
+    /// What the scene has: its bounds, its triangle count (the records in the run), its
+    /// material and part tables (materials in the order the in-memory sink numbers them, so
+    /// both paths give the same table).
+    pub scene: SceneInfo,
     /// What the import read, dropped and warned about.
     pub report: ImportReport,
     /// What this conversion's spill files take on disk.
@@ -136,16 +124,17 @@ impl Soup {
     /// a [`MeshSink`] directly: the one built during the import when there is one, else read
     /// back from the spill run. Either way the spill run is deleted.
     pub fn into_mesh(mut self) -> Result<Mesh, OocError> {
+        let (materials, parts) = (&self.scene.materials, &self.scene.parts);
         if let Some(mesh) = self
             .tee
             .take()
-            .and_then(|t| t.finish(self.materials.clone(), self.parts.clone()))
+            .and_then(|t| t.finish(materials.clone(), parts.clone()))
         {
             self.run.remove(&self.disk)?;
             return Ok(mesh?);
         }
         let mut sink = MeshSink::new(false);
-        for m in &self.materials {
+        for m in materials {
             sink.add_material(m.clone())?;
         }
         let at = Location::file("import spill");
@@ -153,25 +142,12 @@ impl Soup {
             sink.push(r?.triangle, &at)?;
         }
         let store = sink.finish_intake()?.store;
-        Ok(store.into_mesh(self.materials.clone(), self.parts.clone())?)
-    }
-
-    /// What the whole scene has, without its triangles.
-    pub fn info(&self) -> super::SceneInfo {
-        super::SceneInfo {
-            bounds: self.bounds,
-            count: self.count,
-            materials: self.materials.clone(),
-            used_materials: self.used_materials.clone(),
-            parts: self.parts.clone(),
-            normals: self.normals,
-            colours: self.colours,
-        }
+        Ok(store.into_mesh(materials.clone(), parts.clone())?)
     }
 
     /// Spill bytes per triangle of the import's run: what the scene's records take.
     pub fn bytes_per_triangle(&self) -> f64 {
-        self.run.bytes() as f64 / self.count.max(1) as f64
+        self.run.bytes() as f64 / self.scene.count.max(1) as f64
     }
 }
 
@@ -180,9 +156,56 @@ pub struct SoupStore {
     writer: SoupWriter,
     disk: Arc<SpillDisk>,
     tee: Option<MeshTee>,
-    bounds: Bounds,
-    normals: bool,
-    colours: bool,
+    tally: Tally,
+}
+
+/// What a store learns of the scene besides its triangles, as it takes them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tally {
+    /// The box of every corner taken.
+    pub bounds: Bounds,
+    /// Triangles taken.
+    pub count: u64,
+    /// Some triangle has vertex normals.
+    pub normals: bool,
+    /// Some triangle has vertex colours.
+    pub colours: bool,
+}
+
+impl Default for Tally {
+    fn default() -> Self {
+        Tally {
+            bounds: Bounds::EMPTY,
+            count: 0,
+            normals: false,
+            colours: false,
+        }
+    }
+}
+
+impl Tally {
+    /// Takes one triangle.
+    pub fn add(&mut self, t: &InputTriangle) {
+        for p in t.positions {
+            self.bounds.extend(p);
+        }
+        self.count += 1;
+        self.normals |= t.normals.is_some();
+        self.colours |= t.colours.is_some();
+    }
+
+    /// The scene: this tally with the intake's material and part tables.
+    pub fn scene<S>(&self, intaken: &Intaken<S>) -> SceneInfo {
+        SceneInfo {
+            bounds: self.bounds,
+            count: self.count,
+            materials: intaken.table.clone(),
+            used_materials: intaken.used_order.clone(),
+            parts: intaken.parts.clone(),
+            normals: self.normals,
+            colours: self.colours,
+        }
+    }
 }
 
 impl Store for SoupStore {
@@ -199,11 +222,7 @@ impl Store for SoupStore {
         if let Some(tee) = &mut self.tee {
             tee.push(t);
         }
-        for p in t.positions {
-            self.bounds.extend(p);
-        }
-        self.normals |= t.normals.is_some();
-        self.colours |= t.colours.is_some();
+        self.tally.add(&t);
         Ok(())
     }
 }
@@ -222,9 +241,7 @@ pub fn soup_sink(base: &Path, strict: bool, mesh_limit: Option<u64>) -> Result<S
         writer: SoupWriter::create(base, disk.clone()),
         disk,
         tee: mesh_limit.map(MeshTee::spawn),
-        bounds: Bounds::EMPTY,
-        normals: false,
-        colours: false,
+        tally: Tally::default(),
     };
     Ok(Intake::with_store(strict, store))
 }
@@ -232,24 +249,13 @@ pub fn soup_sink(base: &Path, strict: bool, mesh_limit: Option<u64>) -> Result<S
 /// Ends the import into `sink` and flushes its spill run. Fails on an empty result, like the
 /// in-memory sink.
 pub fn finish_soup(sink: SoupSink) -> Result<Soup, OocError> {
-    let Intaken {
-        store,
-        table,
-        used_order,
-        parts,
-        report,
-    } = sink.finish_intake()?;
-    let run = store.writer.finish()?;
+    let intaken = sink.finish_intake()?;
+    let scene = intaken.store.tally.scene(&intaken);
+    let Intaken { store, report, .. } = intaken;
     Ok(Soup {
         tee: store.tee,
-        count: run.count,
-        run,
-        bounds: store.bounds,
-        materials: table,
-        used_materials: used_order,
-        parts,
-        normals: store.normals,
-        colours: store.colours,
+        run: store.writer.finish()?,
+        scene,
         report,
         disk: store.disk,
     })

@@ -75,6 +75,25 @@ pub fn build_subset(
     opts: &ConvertOptions,
     progress: &mut dyn Progress,
 ) -> Result<SubsetReport, SubsetError> {
+    // A wrong index is told before the inputs are read for their checksums.
+    if index >= plan.subsets {
+        return Err(SubsetError::NoSuchSubset {
+            index,
+            subsets: plan.subsets,
+        });
+    }
+    check_inputs(plan)?;
+    build_checked(plan, index, output, opts, progress)
+}
+
+/// [`build_subset`] with the inputs already checked against the plan.
+pub(super) fn build_checked(
+    plan: &Plan,
+    index: u32,
+    output: &Path,
+    opts: &ConvertOptions,
+    progress: &mut dyn Progress,
+) -> Result<SubsetReport, SubsetError> {
     let start = Instant::now();
     let top = plan.top()?;
     let cell = top
@@ -85,7 +104,6 @@ pub fn build_subset(
             index,
             subsets: plan.subsets,
         })?;
-    check_inputs(plan)?;
     let parent = opts.tmp_dir.as_deref().unwrap_or(folder_of(output));
     // A subset spills at most the whole scene, as one conversion does.
     if let Some(e) = space_estimate(plan) {
@@ -123,7 +141,7 @@ pub(super) fn space_estimate(plan: &Plan) -> Option<Estimate> {
 }
 
 /// Refuses an input whose length or checksum is not the plan's.
-fn check_inputs(plan: &Plan) -> Result<(), SubsetError> {
+pub(super) fn check_inputs(plan: &Plan) -> Result<(), SubsetError> {
     for input in &plan.inputs {
         let (bytes, crc) = checksum(Path::new(&input.path))?;
         let what = if bytes != input.bytes {

@@ -2,12 +2,11 @@
 //! by routing every triangle down the cuts as the out-of-core split routes it.
 
 use super::plan::{Plan, PlanNode};
-use super::route::Tally;
 use super::SubsetError;
 use crate::layout::plan::is_lod_depth;
 use crate::lod::rlod::{PlaneFit, PlaneMoments};
 use crate::ooc::chunk::SceneFacts;
-use crate::ooc::soup::SoupTriangle;
+use crate::ooc::soup::{SoupTriangle, Tally};
 use crate::ooc::split::{Cut, Sides, MAX_SPLIT_DEPTH};
 use oocfmt_meshio::import::{ImportError, InputTriangle, Location, Store};
 use oocfmt_meshio::mesh::Bounds;

@@ -254,11 +254,13 @@ pub fn convert_plan(
         source,
     })?;
     let start = std::time::Instant::now();
+    // The inputs are read for their checksums once, not once a subset.
+    build::check_inputs(plan)?;
     let mut parts: Vec<PathBuf> = Vec::new();
     let mut peak_disk = 0u64;
     for index in 0..plan.subsets {
         let part = dir.path().join(format!("part-{index}.oocfp"));
-        let built = build_subset(plan, index, &part, opts, progress)?;
+        let built = build::build_checked(plan, index, &part, opts, progress)?;
         // The subset files so far, and this subset's spill files at their peak.
         peak_disk = peak_disk.max(built.peak_disk_bytes + dir_bytes(dir.path()));
         parts.push(part);

@@ -11,56 +11,10 @@ use crate::convert::{import_one, ConvertOptions};
 use crate::interrupt::WatchedSink;
 use crate::ooc::disk::SpillDisk;
 use crate::ooc::segments::Run;
-use crate::ooc::soup::{SoupTriangle, SoupWriter};
+use crate::ooc::soup::{SoupTriangle, SoupWriter, Tally};
 use crate::ooc::split::{Cut, Sides, TopNode};
-use crate::ooc::SceneInfo;
 use crate::progress::Progress;
 use oocfmt_meshio::import::{ImportError, InputTriangle, Intake, Intaken, Location, Store};
-use oocfmt_meshio::mesh::Bounds;
-
-/// What a pass learns of the whole scene besides its triangles.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct Tally {
-    pub bounds: Bounds,
-    pub count: u64,
-    pub normals: bool,
-    pub colours: bool,
-}
-
-impl Default for Tally {
-    fn default() -> Self {
-        Tally {
-            bounds: Bounds::EMPTY,
-            count: 0,
-            normals: false,
-            colours: false,
-        }
-    }
-}
-
-impl Tally {
-    pub fn add(&mut self, t: &InputTriangle) {
-        for p in t.positions {
-            self.bounds.extend(p);
-        }
-        self.count += 1;
-        self.normals |= t.normals.is_some();
-        self.colours |= t.colours.is_some();
-    }
-
-    /// The scene with the intake's tables.
-    pub fn scene<S>(&self, intaken: &Intaken<S>) -> SceneInfo {
-        SceneInfo {
-            bounds: self.bounds,
-            count: self.count,
-            materials: intaken.table.clone(),
-            used_materials: intaken.used_order.clone(),
-            parts: intaken.parts.clone(),
-            normals: self.normals,
-            colours: self.colours,
-        }
-    }
-}
 
 /// Imports every input, in order, into an intake in front of `store`, as `convert` would:
 /// positions relative to `origin`, each file a part when there are several. `on_input` is
