@@ -29,7 +29,10 @@ async cache); the share of surface rays drawn on a proxy because their block was
 (what the async cache shows instead of waiting) and the blocks a cold run loads; the peak
 resident set of the processes (the decoded blocks, the proxies, and for mmap the mapped pages
 touched) and the bytes of the model in the page cache after a cold run
-(`fincore`, where installed). Standard library only.
+(`fincore`, where installed). --per-frame adds each configuration's first cold run frame by
+frame, side by side: the time, the shares of surface rays ending at full detail, on a LOD record
+and on a proxy, the blocks loaded, the working set (mmap: the bytes of blocks touched) and the
+waits. Standard library only.
 
 --memory-limit-mb M runs every render process in a memory control group (cgroup v2
 `memory.max`, or v1 `memory.limit_in_bytes`; needs root) holding at most M MiB of the process's
@@ -178,6 +181,40 @@ def proxy_share(f):
     return e.get("proxy", 0) / surface if surface else 0.0
 
 
+def frame_row(f):
+    """What a person reads of one frame: its time, where its surface rays ended (full detail,
+    a LOD record, or a proxy because the block was not resident), the blocks it loaded, the
+    decoded (mmap: touched) bytes resident and the render-thread waits on I/O."""
+    e = f["stats"].get("primary", {})
+    surface = sum(e.get(k, 0) for k in ("triangle", "voxel", "rlod", "proxy")) or 1
+    return {
+        "ms": total(f),
+        "full_detail": e.get("triangle", 0) / surface,
+        "lod": (e.get("voxel", 0) + e.get("rlod", 0)) / surface,
+        "proxy": e.get("proxy", 0) / surface,
+        "blocks_loaded": f.get("blocks_loaded", 0),
+        "working_set_mb": f.get("working_set_mb", 0.0),
+        "waits": f.get("waits", 0),
+    }
+
+
+def print_per_frame(results):
+    """The first cold run of each configuration, frame by frame, side by side."""
+    cols = "{:>9} {:>6} {:>6} {:>6} {:>7} {:>8} {:>6}"
+    head = "frame " + " | ".join(f"{r['config'] + ' (' + r['cache'] + ')':^55}" for r in results)
+    print(head)
+    print("      " + " | ".join(cols.format("ms", "full%", "lod%", "proxy%", "loaded", "WS MiB", "waits")
+                                for _ in results))
+    for i in range(min(len(r["first_cold"]) for r in results)):
+        cells = []
+        for r in results:
+            f = r["first_cold"][i]
+            cells.append(cols.format(f"{f['ms']:.1f}", f"{100 * f['full_detail']:.1f}", f"{100 * f['lod']:.1f}",
+                                     f"{100 * f['proxy']:.1f}", f["blocks_loaded"],
+                                     f"{f['working_set_mb']:.1f}", f["waits"]))
+        print(f"{i:>5} " + " | ".join(cells))
+
+
 def pct(values, q):
     """The q-th percentile (0..100) of `values`, linear between the nearest ranks."""
     v = sorted(values)
@@ -249,6 +286,7 @@ def measure(name, a, model, cams, work, method, common):
         "page_cache_after_cold_mib": (statistics.median(cached) / 2**20) if None not in cached else None,
     }
     res["bound_holds"] = res["cold_p95"] <= 1.5
+    res["first_cold"] = [frame_row(f) for f in colds[0]]
     print(f"{name:>8} ({mode}, io {io}): warm frame {res['warm_ms']:.1f} ms (median); cold/warm ratio "
           f"p50 / p95 / max {spread(ratios)}; warm runs' own spread {spread(noise) if noise else 'n/a'}; "
           f"bound p95 <= 1.5: {'holds' if res['bound_holds'] else 'FAILS'}")
@@ -305,6 +343,8 @@ def main():
     p.add_argument("--render-args", default="", help="more `oocfmt render` flags for every run")
     p.add_argument("--memory-limit-mb", type=int,
                    help="run the renders in a memory group of this many MiB (see above)")
+    p.add_argument("--per-frame", action="store_true",
+                   help="also print the first cold run of every configuration frame by frame, side by side")
     p.add_argument("--json", help="also write the figures to this file")
     p.add_argument("--dir", default=os.path.join(ROOT, "target", "bench-cold"))
     a = p.parse_args()
@@ -351,6 +391,8 @@ def main():
                 results.append(measure(n, a, plain if CONFIGS[n][1] else model, cams, work, method, common))
     finally:
         GROUP.close()
+    if a.per_frame:
+        print_per_frame(results)
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"model": model, "evict": method, "runs": a.runs, "frames": len(cams),

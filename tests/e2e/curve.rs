@@ -220,6 +220,56 @@ fn curve_plots_png_and_walks_a_path() {
     assert!(read_png(&d.join("c.png")).0 > 0);
 }
 
+/// `--shadows` lights the reference, the floor and every PoE alike (PoE 0 is the floor, and the
+/// floor stays near the reference), and a reference cache far too small for its view only
+/// costs time: the figures are those of the default budget.
+#[test]
+fn curve_with_shadows_lights_every_image_alike() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    converted_mandelbulb(d);
+    let curve = |extra: &[&str], json: &str| {
+        let mut args = vec![
+            "curve",
+            "mb.oocf",
+            "--size",
+            "48x36",
+            "--poe",
+            "0,4",
+            "--repeat",
+            "1",
+            "--reference-spp",
+            "4",
+            "--json",
+            json,
+        ];
+        args.extend_from_slice(extra);
+        run_ok(&args, d);
+        let text = std::fs::read_to_string(d.join(json)).unwrap();
+        serde_json::from_str::<serde_json::Value>(&text).unwrap()
+    };
+    let lit = curve(&[], "lit.json");
+    let shadowed = curve(&["--shadows"], "shadowed.json");
+    let small = curve(&["--shadows", "--reference-mb", "1"], "small.json");
+    assert_eq!(lit["shadows"], false);
+    assert_eq!(shadowed["shadows"], true);
+    let floor_rmse = |c: &serde_json::Value| c["floor"]["error"]["model"]["rmse"].as_f64().unwrap();
+    let rows = shadowed["rows"].as_array().unwrap();
+    assert_eq!(rows[0]["error"], shadowed["floor"]["error"]);
+    assert_ne!(shadowed["floor"]["error"], lit["floor"]["error"]);
+    // A reference lit otherwise than its floor would sit tens of levels away.
+    assert!(
+        floor_rmse(&shadowed) < 3.0 * floor_rmse(&lit) + 2.0,
+        "{} against {}",
+        floor_rmse(&shadowed),
+        floor_rmse(&lit)
+    );
+    for (a, b) in rows.iter().zip(small["rows"].as_array().unwrap()) {
+        assert_eq!(a["error"], b["error"]);
+    }
+    assert_eq!(shadowed["floor"]["error"], small["floor"]["error"]);
+}
+
 #[test]
 fn curve_rejects_bad_flags() {
     let dir = tempfile::tempdir().unwrap();
@@ -238,6 +288,8 @@ fn curve_rejects_bad_flags() {
         &["--reference-spp", "0"],
         &["--reference-spp", "257"],
         &["--size", "0x10"],
+        &["--reference-mb", "0"],
+        &["--light", "1,2,3"],
     ] {
         let mut args = vec!["curve", "mb.oocf"];
         args.extend_from_slice(bad);

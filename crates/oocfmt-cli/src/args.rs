@@ -292,6 +292,24 @@ pub fn parse_byte_size(s: &str) -> Result<u64, String> {
     Ok((v * mult as f64) as u64)
 }
 
+/// A count of things >= 1: a whole number (`1000000`, `1_000_000`) or in scientific notation
+/// (`1e9`, `2.5e8`) when that is a whole number at most 2^53 (where every whole f64 is exact).
+pub fn parse_count(s: &str) -> Result<u64, String> {
+    let bad = || format!("`{s}`: expected a whole number >= 1, e.g. 1000000 or 1e9");
+    let t = s.trim().replace('_', "");
+    if let Ok(n) = t.parse::<u64>() {
+        return if n >= 1 { Ok(n) } else { Err(bad()) };
+    }
+    let v: f64 = t.parse().map_err(|_| bad())?;
+    // 2^53: beyond it an f64 no longer names every whole number.
+    let exact = 9_007_199_254_740_992.0;
+    if v.is_finite() && v >= 1.0 && v <= exact && v.fract() == 0.0 {
+        Ok(v as u64)
+    } else {
+        Err(bad())
+    }
+}
+
 /// MiB as a number: finite, > 0 and at most 2^30.
 pub fn parse_mb(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
@@ -374,6 +392,20 @@ mod tests {
         assert!(parse_pixel("3").is_err());
         assert!(parse_pixel("-1,2").is_err());
         assert!(parse_pixel("1,2,3").is_err());
+    }
+
+    #[test]
+    fn counts_parse_plain_or_scientific() {
+        assert_eq!(parse_count("1000000"), Ok(1_000_000));
+        assert_eq!(parse_count("1_000_000"), Ok(1_000_000));
+        assert_eq!(parse_count("1e9"), Ok(1_000_000_000));
+        assert_eq!(parse_count("2.5E8"), Ok(250_000_000));
+        assert_eq!(parse_count(&u64::MAX.to_string()), Ok(u64::MAX));
+        for bad in [
+            "0", "0e3", "1.5", "1e-3", "-1", "1e300", "inf", "nan", "", "lots",
+        ] {
+            assert!(parse_count(bad).is_err(), "{bad}");
+        }
     }
 
     #[test]

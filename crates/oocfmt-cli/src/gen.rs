@@ -39,8 +39,9 @@ pub struct CadArgs {
 
 #[derive(clap::Args)]
 pub struct Common {
-    /// Approximate triangle count (Mandelbulb within about 20 %, CAD exact)
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    /// Approximate triangle count (Mandelbulb within about 20 %, CAD exact): a whole number,
+    /// or in scientific notation (`1e9`)
+    #[arg(long, value_parser = crate::args::parse_count)]
     pub tris: u64,
     /// The OBJ file to write; `-` writes to standard output (CAD: without its .mtl, so
     /// materials get the default colour)

@@ -1,7 +1,7 @@
 //! `oocfmt curve`: speed against error. Renders one view (or a walkthrough) at a list of
 //! pixels-of-error values with each asked-for cache, warm, and compares every image with the
 //! true picture: full detail supersampled (PoE 0, `--reference-spp` rays per pixel, blocking
-//! cache, everything loaded), on the model's pixels and on the whole image. Full detail at one
+//! cache of `--reference-mb`), on the model's pixels and on the whole image. Full detail at one
 //! ray per pixel is measured against it too: the floor that aliasing sets. A table, JSON, a
 //! plot of error against frame time and a contact sheet of the images with zoomed crops.
 
@@ -31,6 +31,8 @@ use touched::Touched;
 
 /// The JSON schema of `--json`.
 pub const SCHEMA: &str = "oocfmt-curve/2";
+/// `--reference-mb` unless given: a full-detail view of 10M triangles takes 333 MiB of blocks.
+pub const DEFAULT_REFERENCE_MB: u64 = 8192;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -71,9 +73,21 @@ pub struct Args {
     /// --spp`); the aliasing floor is full detail at one
     #[arg(long, default_value_t = accuracy::DEFAULT_REFERENCE_SPP, value_parser = clap::value_parser!(u32).range(1..=i64::from(accuracy::MAX_REFERENCE_SPP)))]
     pub reference_spp: u32,
-    /// Memory for decoded blocks per cache, in MiB (the reference's cache is unbounded)
+    /// Memory for decoded blocks per cache, in MiB
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
     pub cache_mb: u64,
+    /// Memory for the full-detail renders' decoded blocks, in MiB: a model larger than memory
+    /// is measured too, a reference that cannot keep its view's blocks only reading them again
+    /// (time, never accuracy)
+    #[arg(long, default_value_t = DEFAULT_REFERENCE_MB, value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
+    pub reference_mb: u64,
+    /// Light with a point light and one shadow ray per hit (as `render --shadows`), every
+    /// image and the reference alike
+    #[arg(long)]
+    pub shadows: bool,
+    /// The point light of --shadows, X,Y,Z in world coordinates (default: as for `render`)
+    #[arg(long, value_parser = args::parse_vec3, allow_hyphen_values = true, requires = "shadows")]
+    pub light: Option<[f64; 3]>,
     /// Fetcher threads of the async cache (default: half the cores, at least one)
     #[arg(long, default_value_t = args::default_fetchers(), value_parser = clap::value_parser!(u64).range(1..=64))]
     pub fetchers: u64,
@@ -179,9 +193,11 @@ struct Curve<'a> {
     repeat: u32,
     threads: usize,
     cache_mb: u64,
+    /// Lit by a point light with shadow rays (`--shadows`), else by the headlight.
+    shadows: bool,
     /// The tolerance of every `within_tolerance`.
     tolerance: u8,
-    /// The reference: PoE 0, `spp` rays per pixel, blocking cache without a budget.
+    /// The reference: PoE 0, `spp` rays per pixel, blocking cache of `--reference-mb`.
     reference: Reference,
     /// Full detail at one ray per pixel against the reference: the aliasing floor.
     floor: Floor,
@@ -255,7 +271,17 @@ pub fn run(a: &Args) -> CliResult {
         // A container mmap cannot map is refused before any rendering.
         open_cache(a, None, CacheKind::Mmap, None)?;
     }
-    let full = render_full_detail(&scene, &cameras, a.reference_spp, a.tolerance)?;
+    let base = RenderOptions {
+        shadows: a.shadows,
+        light: a.light.map(|l| session::stored_point(&scene, l)),
+        ..RenderOptions::default()
+    };
+    let full = render_full_detail(
+        (&scene, &cameras),
+        &base,
+        budget_bytes(a.reference_mb),
+        (a.reference_spp, a.tolerance),
+    )?;
     let references = &full.references;
     let mut rows = Vec::new();
     let mut shots = Vec::new();
@@ -265,8 +291,13 @@ pub fn run(a: &Args) -> CliResult {
                 // A fresh cache per measurement, so each working set is the PoE's own.
                 let kind = CacheKind::from(kind);
                 let (scene, cache) = open_cache(a, Some(Arc::clone(lod_scene)), kind, Some(*lod))?;
+                let opts = RenderOptions {
+                    poe,
+                    translucent: a.translucent,
+                    ..base
+                };
                 let (row, image) =
-                    measure(a, &scene, &cache, (kind, *lod), poe, &cameras, references)?;
+                    measure(a, &scene, &cache, (kind, *lod), &opts, &cameras, references)?;
                 shots.push(Shot {
                     cache: if scenes.len() > 1 {
                         format!("{} {}", row.cache, row.lod)
@@ -294,6 +325,7 @@ pub fn run(a: &Args) -> CliResult {
         repeat: a.repeat,
         threads: rayon::current_num_threads(),
         cache_mb: a.cache_mb,
+        shadows: a.shadows,
         tolerance: a.tolerance,
         reference: full.reference,
         floor: full.floor,
@@ -383,17 +415,22 @@ struct FullDetail {
     first_floor: Option<Image>,
 }
 
-/// Renders each camera at full detail with a blocking cache that keeps every block: the
-/// reference at `spp` rays per pixel, and at one ray per pixel the floor, measured against it
-/// at once (only the first camera's floor image is kept).
+/// Renders each camera at full detail with `base`'s lighting through a blocking cache of
+/// `budget` bytes: the reference at `spp` rays per pixel, and at one ray per pixel the floor,
+/// measured against it at once (only the first camera's floor image is kept).
 fn render_full_detail(
-    scene: &Arc<Scene>,
-    cameras: &[Camera],
-    spp: u32,
-    tolerance: u8,
+    (scene, cameras): (&Arc<Scene>, &[Camera]),
+    base: &RenderOptions,
+    budget: usize,
+    (spp, tolerance): (u32, u8),
 ) -> Result<FullDetail, CliError> {
-    let cache = BlockingCache::new(Arc::clone(scene), usize::MAX);
-    let floor_opts = RenderOptions::default();
+    let cache = BlockingCache::new(Arc::clone(scene), budget);
+    let floor_opts = RenderOptions {
+        poe: 0.0,
+        spp: 1,
+        translucent: false,
+        ..*base
+    };
     let reference_opts = reference_options(&floor_opts, spp);
     let blank = |spp| Reference {
         cache: "blocking",
@@ -441,22 +478,18 @@ fn add_endings(sum: &mut Endings, e: &Endings) {
     sum.miss += e.miss;
 }
 
-/// Warms `cache` on every camera at `poe`, renders one recorded pass for the blocks touched,
-/// then `repeat` timed passes; returns the figures and the first camera's last image.
+/// Warms `cache` on every camera with `opts`, renders one recorded pass for the blocks
+/// touched, then `repeat` timed passes; returns the figures and the first camera's last image.
 fn measure(
     a: &Args,
     scene: &Scene,
     cache: &Cache,
     (kind, lod): (CacheKind, LodKind),
-    poe: f32,
+    opts: &RenderOptions,
     cameras: &[Camera],
     references: &[Image],
 ) -> Result<(Row, Image), CliError> {
-    let opts = RenderOptions {
-        poe,
-        translucent: a.translucent,
-        ..RenderOptions::default()
-    };
+    let (opts, poe) = (*opts, opts.poe);
     let mut settle_frames = 0;
     let cold = cache.get().render_waits();
     for camera in cameras {
@@ -605,10 +638,14 @@ fn print_table(
     let (w, h) = a.view.size;
     let model_pixels = full.floor.error.model.pixels;
     outln!(
-        "{}: {w}x{h}, {} camera(s), {} threads; warm caches, median of {} timed frame(s)",
+        "{}: {w}x{h}, {} camera(s), {} threads, {}; warm caches, median of {} timed frame(s)",
         a.model.display(),
         cameras.len(),
         rayon::current_num_threads(),
+        match a.shadows {
+            true => "point light with shadow rays",
+            false => "headlight",
+        },
         a.repeat,
     )?;
     outln!(
