@@ -363,6 +363,7 @@ fn import_soup(
         .with_origin(origin)
         .with_file_parts(inputs.len() > 1);
     progress.phase("import", Some(inputs.len() as u64));
+    let opts = &with_vertex_spill(opts, dir);
     for (i, path) in inputs.iter().enumerate() {
         import_one(
             path,
@@ -373,6 +374,24 @@ fn import_soup(
     }
     progress.finish_phase();
     Ok(finish_soup(sink)?)
+}
+
+/// `opts` with OBJ vertex tables beyond an eighth of the memory limit each (positions,
+/// normals, colours) moved to `dir`, unless the caller chose a spill: a billion-triangle OBJ
+/// file has half a billion vertices.
+fn with_vertex_spill(opts: &ConvertOptions, dir: &Path) -> ConvertOptions {
+    let mut opts = opts.clone();
+    if opts.obj.spill.is_some() {
+        return opts;
+    }
+    opts.obj.spill = Some(import::obj::ObjSpill {
+        to: import::spill_table::SpillTo {
+            dir: dir.to_path_buf(),
+            resident_bytes: usize::try_from(opts.mem_limit / 8).unwrap_or(usize::MAX),
+        },
+        max_vertices: import::obj::ObjSpill::MAX_VERTICES.max(opts.obj.max_vertices),
+    });
+    opts
 }
 
 /// Builds a scene that fits in memory: its kd-tree, then its LOD data and blocks, then the

@@ -272,6 +272,74 @@ fn spill_files_go_to_the_tmp_dir_and_the_report_gives_the_disk_used() {
     assert!(!missing.exists());
 }
 
+/// An OBJ file whose vertex table passes an eighth of the memory limit moves its older pages
+/// to a temporary file in the spill folder: the same bytes as with every vertex in memory, the
+/// file's bytes in the peak disk use, nothing left behind.
+#[test]
+fn obj_vertices_past_the_memory_budget_move_to_disk() {
+    use oocfmt_meshio::import::obj::ObjSpill;
+    use oocfmt_meshio::import::spill_table::SpillTo;
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("mb.obj");
+    let opts = MandelbulbOptions {
+        triangles: 400_000,
+        ..MandelbulbOptions::default()
+    };
+    let made = mandelbulb::write_obj(&obj, &opts, &mut |_, _| {}).unwrap();
+    // Pages of 65 536 positions of 12 bytes: an eighth of the limit keeps one.
+    let moved_pages = made.vertices / 65_536 - 1;
+    assert!(moved_pages >= 2, "{made:?}");
+    let (moved, kept) = (dir.path().join("moved.oocf"), dir.path().join("kept.oocf"));
+    let report = convert(
+        std::slice::from_ref(&obj),
+        &moved,
+        &options(6000),
+        &mut NoProgress,
+    )
+    .unwrap();
+    let in_memory = ConvertOptions {
+        obj: oocfmt_meshio::import::obj::ObjOptions {
+            spill: Some(ObjSpill {
+                to: SpillTo {
+                    dir: dir.path().to_path_buf(),
+                    resident_bytes: 1 << 30,
+                },
+                max_vertices: 1 << 30,
+            }),
+            ..Default::default()
+        },
+        ..options(6000)
+    };
+    let baseline = convert(
+        std::slice::from_ref(&obj),
+        &kept,
+        &in_memory,
+        &mut NoProgress,
+    )
+    .unwrap();
+    assert_eq!(
+        std::fs::read(&moved).unwrap(),
+        std::fs::read(&kept).unwrap()
+    );
+    let spilled = 37 * report.import.triangles_out;
+    let vertex_file = moved_pages * 65_536 * 12;
+    // The vertex file is full when the import ends and the soup nearly so (its last buffer
+    // is written after the file is gone).
+    assert!(
+        report.peak_disk_bytes >= spilled + vertex_file * 3 / 4
+            && report.peak_disk_bytes > baseline.peak_disk_bytes,
+        "{} against {spilled} + {vertex_file}, {} with every vertex in memory",
+        report.peak_disk_bytes,
+        baseline.peak_disk_bytes
+    );
+    let mut names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["kept.oocf", "mb.obj", "moved.oocf"]);
+}
+
 /// A real full disk. Needs `OOCFMT_SMALL_FS`: a folder on a file system with well under 1 MiB
 /// free, e.g. `mount -t tmpfs -o size=512k tmpfs /mnt/small`. A file input is refused before
 /// any work; the same input through a FIFO (size unknown, so not checked) fails when the disk

@@ -178,6 +178,14 @@ impl TriangleSink for WatchedSink<'_> {
         self.inner.place(exact)
     }
 
+    fn charge_disk(&mut self, bytes: u64) -> std::io::Result<()> {
+        self.inner.charge_disk(bytes)
+    }
+
+    fn release_disk(&mut self, bytes: u64) {
+        self.inner.release_disk(bytes);
+    }
+
     fn positions_only(&self) -> bool {
         self.inner.positions_only()
     }

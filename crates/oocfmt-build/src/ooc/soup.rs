@@ -225,6 +225,14 @@ impl Store for SoupStore {
         self.tally.add(&t);
         Ok(())
     }
+
+    fn charge_disk(&mut self, bytes: u64) -> std::io::Result<()> {
+        self.disk.charge(bytes)
+    }
+
+    fn release_disk(&mut self, bytes: u64) {
+        self.disk.release(bytes);
+    }
 }
 
 /// The sink of `oocfmt convert`: the shared bad-input policy in front of a spill run.

@@ -8,6 +8,7 @@ pub mod obj;
 pub mod placement;
 pub mod ply;
 mod sink;
+pub mod spill_table;
 pub mod stl;
 
 use std::collections::BTreeMap;
@@ -325,4 +326,11 @@ pub trait TriangleSink {
     fn positions_only(&self) -> bool {
         false
     }
+    /// The importer's own temporary files (vertex tables larger than memory) grew by `bytes`:
+    /// a sink that counts disk use charges them, refusing as a full disk would.
+    fn charge_disk(&mut self, _bytes: u64) -> std::io::Result<()> {
+        Ok(())
+    }
+    /// The importer's temporary files of `bytes` in all were deleted.
+    fn release_disk(&mut self, _bytes: u64) {}
 }

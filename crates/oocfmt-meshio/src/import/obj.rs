@@ -54,6 +54,7 @@ use notes::{Kind, Notes};
 use parts::Parts;
 use polygon::{Outcome, Triangulator};
 
+use super::spill_table::{SpillTable, SpillTo};
 use super::{DropReason, ImportError, InputTriangle, Location, Skipped, TriangleSink};
 
 /// Bounds on what one file can make the importer hold or do.
@@ -61,8 +62,11 @@ use super::{DropReason, ImportError, InputTriangle, Location, Skipped, TriangleS
 pub struct ObjOptions {
     /// Longest logical line, in bytes (continuations joined, line ending not counted).
     pub max_line_bytes: usize,
-    /// Most vertex positions (`v`) held; the same bound applies to normals (`vn`).
+    /// Most vertex positions (`v`) held in memory; the same bound applies to normals (`vn`).
     pub max_vertices: usize,
+    /// Where vertex attributes beyond a memory budget go, and the bound on vertices then;
+    /// `None`: all in memory, at most `max_vertices`.
+    pub spill: Option<ObjSpill>,
     /// Most corners of one face.
     pub max_face_corners: usize,
     /// Largest material library read, in bytes.
@@ -77,8 +81,26 @@ impl Default for ObjOptions {
             max_vertices: 1 << 28,
             max_face_corners: 1 << 16,
             max_mtl_bytes: 64 << 20,
+            spill: None,
         }
     }
+}
+
+/// Vertex tables larger than memory: each of positions, normals and colours keeps
+/// `to.resident_bytes` in memory and moves older pages to an unnamed file in `to.dir`, whose
+/// bytes the sink is told of ([`TriangleSink::charge_disk`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ObjSpill {
+    /// The folder and the memory budget of each table.
+    pub to: SpillTo,
+    /// Most vertex positions (and normals) in all.
+    pub max_vertices: usize,
+}
+
+impl ObjSpill {
+    /// Room for 2^33 vertices: 96 GiB of positions on disk, beyond any file of a few hundred
+    /// GB.
+    pub const MAX_VERTICES: usize = 1 << 33;
 }
 
 /// Reads the OBJ file at `path` (and the material libraries it names) into `sink`.
@@ -140,10 +162,12 @@ struct Obj<'o> {
     opts: &'o ObjOptions,
     /// The place of the statement being read; faces report with it.
     at: Location,
-    positions: Vec<[f32; 3]>,
-    normals: Vec<[f32; 3]>,
+    positions: SpillTable<[f32; 3]>,
+    normals: SpillTable<[f32; 3]>,
     /// Per vertex; empty until the first coloured vertex, so colourless files pay nothing.
-    colours: Vec<Option<[u8; 4]>>,
+    colours: SpillTable<Option<[u8; 4]>>,
+    /// The bytes of the tables' files the sink was charged for.
+    charged: u64,
     corners: Vec<Corner>,
     polygon: Vec<[f32; 3]>,
     triangulator: Triangulator,
@@ -161,9 +185,10 @@ impl<'o> Obj<'o> {
         Obj {
             opts,
             at: Location::file(file),
-            positions: Vec::new(),
-            normals: Vec::new(),
-            colours: Vec::new(),
+            positions: SpillTable::new(opts.spill.as_ref().map(|s| s.to.clone())),
+            normals: SpillTable::new(opts.spill.as_ref().map(|s| s.to.clone())),
+            colours: SpillTable::new(opts.spill.as_ref().map(|s| s.to.clone())),
+            charged: 0,
             corners: Vec::new(),
             polygon: Vec::new(),
             triangulator: Triangulator::default(),
@@ -213,7 +238,10 @@ impl<'o> Obj<'o> {
         }
         match keyword {
             "v" => self.vertex(words, sink),
-            "vn" => self.normal(words),
+            "vn" => {
+                self.normal(words)?;
+                self.charge_moved(sink)
+            }
             // `fo` is the face statement of old versions of the format.
             "f" | "fo" => self.face(words, sink),
             "l" => {
@@ -314,10 +342,11 @@ impl<'o> Obj<'o> {
             sink.place(xyz);
             return Ok(());
         }
-        if self.positions.len() >= self.opts.max_vertices {
-            return Err(self.limit("vertex positions (`v`)", self.opts.max_vertices));
+        if self.positions.len() >= self.max_vertices() {
+            return Err(self.limit("vertex positions (`v`)", self.max_vertices()));
         }
-        self.positions.push(sink.place(xyz));
+        let p = sink.place(xyz);
+        self.positions.push(p).map_err(|e| self.spill_error(e))?;
         match colour {
             Some(rgb) => {
                 if !rgb.iter().all(|c| (0.0..=1.0).contains(c)) {
@@ -328,14 +357,57 @@ impl<'o> Obj<'o> {
                 // NaN clamps to NaN, which converts to 0.
                 let c = rgb.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
                 if self.colours.is_empty() {
-                    self.colours.resize(self.positions.len() - 1, None);
+                    let before = self.positions.len() - 1;
+                    self.colours
+                        .extend_default(before)
+                        .map_err(|e| self.spill_error(e))?;
                 }
-                self.colours.push(Some([c[0], c[1], c[2], 255]));
+                let c = Some([c[0], c[1], c[2], 255]);
+                self.colours.push(c).map_err(|e| self.spill_error(e))?;
             }
-            None if !self.colours.is_empty() => self.colours.push(None),
+            None if !self.colours.is_empty() => {
+                self.colours.push(None).map_err(|e| self.spill_error(e))?
+            }
             None => {}
         }
+        self.charge_moved(sink)
+    }
+
+    /// The bound on vertices: in memory, or with a spill.
+    fn max_vertices(&self) -> usize {
+        self.opts
+            .spill
+            .as_ref()
+            .map_or(self.opts.max_vertices, |s| s.max_vertices)
+    }
+
+    /// Tells the sink of the tables' file bytes since the last call.
+    fn charge_moved(&mut self, sink: &mut dyn TriangleSink) -> Result<(), ImportError> {
+        let now =
+            self.positions.file_bytes() + self.normals.file_bytes() + self.colours.file_bytes();
+        if now > self.charged {
+            sink.charge_disk(now - self.charged)
+                .map_err(|e| self.spill_error(e))?;
+            self.charged = now;
+        }
         Ok(())
+    }
+
+    /// A failure of the vertex tables' file, named by the input and the folder.
+    fn spill_error(&self, source: std::io::Error) -> ImportError {
+        let dir = self
+            .opts
+            .spill
+            .as_ref()
+            .map(|s| s.to.dir.display().to_string());
+        ImportError::Io {
+            path: format!(
+                "{} (vertices moved to a temporary file in {})",
+                self.at.file,
+                dir.unwrap_or_default()
+            ),
+            source,
+        }
     }
 
     fn normal(&mut self, words: SplitWhitespace<'_>) -> Result<(), ImportError> {
@@ -351,11 +423,10 @@ impl<'o> Obj<'o> {
         if count != 3 {
             return Err(self.parse_error(format!("`vn` has {count} numbers, expected 3")));
         }
-        if self.normals.len() >= self.opts.max_vertices {
-            return Err(self.limit("vertex normals (`vn`)", self.opts.max_vertices));
+        if self.normals.len() >= self.max_vertices() {
+            return Err(self.limit("vertex normals (`vn`)", self.max_vertices()));
         }
-        self.normals.push(vals);
-        Ok(())
+        self.normals.push(vals).map_err(|e| self.spill_error(e))
     }
 
     fn limit(&self, what: &str, limit: usize) -> ImportError {
@@ -384,8 +455,14 @@ impl<'o> Obj<'o> {
                      indices"
                 ))
             })?;
-            let vertex = resolve(v, self.positions.len())
-                .and_then(|i| self.positions.get(i).map(|&p| (i, p)));
+            let vertex = match resolve(v, self.positions.len()) {
+                Some(i) => self
+                    .positions
+                    .get(i)
+                    .map_err(|e| self.spill_error(e))?
+                    .map(|p| (i, p)),
+                None => None,
+            };
             let normal = vn.map(|i| resolve(i, self.normals.len()));
             match (vertex, normal) {
                 (Some((i, p)), None | Some(Some(_))) => {
@@ -436,11 +513,12 @@ impl<'o> Obj<'o> {
         let part = self.parts.current(&self.at, sink)?;
         for t in self.triangulator.triangles() {
             let corners = t.map(|i| self.corners[i]);
-            let normals = match corners.map(|c| c.normal.and_then(|n| self.normals.get(n))) {
-                [Some(a), Some(b), Some(c)] => Some([*a, *b, *c]),
-                _ => None,
+            let looked_up = corner_normals(&mut self.normals, corners)
+                .and_then(|n| Ok((n, corner_colours(&mut self.colours, corners)?)));
+            let (normals, colours) = match looked_up {
+                Ok(v) => v,
+                Err(e) => return Err(self.spill_error(e)),
             };
-            let colours = corners.map(|c| self.colours.get(c.vertex).copied().flatten());
             let colours = colours
                 .iter()
                 .any(Option::is_some)
@@ -469,8 +547,37 @@ impl<'o> Obj<'o> {
             sink.skip(Skipped::Points, self.points);
         }
         self.notes.finish(sink, &self.at.file);
+        // The tables' file goes with them.
+        sink.release_disk(std::mem::take(&mut self.charged));
         self.parts.finish(&Location::file(self.at.file.clone()))
     }
+}
+
+/// The normals of a triangle's corners, when all three name one.
+fn corner_normals(
+    normals: &mut SpillTable<[f32; 3]>,
+    corners: [Corner; 3],
+) -> std::io::Result<Option<[[f32; 3]; 3]>> {
+    let mut out = [[0.0; 3]; 3];
+    for (o, c) in out.iter_mut().zip(corners) {
+        match c.normal.map(|n| normals.get(n)).transpose()?.flatten() {
+            Some(n) => *o = n,
+            None => return Ok(None),
+        }
+    }
+    Ok(Some(out))
+}
+
+/// The colours of a triangle's corners (none where the table has none).
+fn corner_colours(
+    colours: &mut SpillTable<Option<[u8; 4]>>,
+    corners: [Corner; 3],
+) -> std::io::Result<[Option<[u8; 4]>; 3]> {
+    let mut out = [None; 3];
+    for (o, c) in out.iter_mut().zip(corners) {
+        *o = colours.get(c.vertex)?.flatten();
+    }
+    Ok(out)
 }
 
 /// Whether rounding `x` to f32 may be a tie (exactly halfway between two f32s). Exact for

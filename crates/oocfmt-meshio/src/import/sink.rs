@@ -71,6 +71,12 @@ pub struct ChunkSchema {
 pub trait Store {
     /// Keeps one admitted triangle: finite, not degenerate, within the format's limits.
     fn store(&mut self, t: InputTriangle, at: &Location) -> Result<(), ImportError>;
+    /// [`TriangleSink::charge_disk`], for a store that counts disk use.
+    fn charge_disk(&mut self, _bytes: u64) -> std::io::Result<()> {
+        Ok(())
+    }
+    /// [`TriangleSink::release_disk`].
+    fn release_disk(&mut self, _bytes: u64) {}
 }
 
 /// A sink: the bad-input policy and the import report, shared by every kind of sink, in front
@@ -301,6 +307,14 @@ impl<S: Store> TriangleSink for Intake<S> {
 
     fn place(&mut self, exact: [f64; 3]) -> [f32; 3] {
         self.placement.place(exact)
+    }
+
+    fn charge_disk(&mut self, bytes: u64) -> std::io::Result<()> {
+        self.store.charge_disk(bytes)
+    }
+
+    fn release_disk(&mut self, bytes: u64) {
+        self.store.release_disk(bytes);
     }
 }
 

@@ -72,6 +72,8 @@ struct Recorder {
     skipped: BTreeMap<Skipped, u64>,
     warnings: Vec<String>,
     fail_on_push: bool,
+    /// Bytes of the importer's temporary files charged and released.
+    disk: (u64, u64),
 }
 
 impl TriangleSink for Recorder {
@@ -108,6 +110,13 @@ impl TriangleSink for Recorder {
     }
     fn place(&mut self, exact: [f64; 3]) -> [f32; 3] {
         exact.map(|c| c as f32)
+    }
+    fn charge_disk(&mut self, bytes: u64) -> std::io::Result<()> {
+        self.disk.0 += bytes;
+        Ok(())
+    }
+    fn release_disk(&mut self, bytes: u64) {
+        self.disk.1 += bytes;
     }
 }
 
@@ -203,6 +212,78 @@ fn an_over_long_line_is_a_limit_error_even_without_any_newline() {
     let (_d, p) = obj(&"9".repeat(4 << 20));
     let msg = error_text(load(&p));
     assert!(msg.contains("m.obj:1: line length"), "{msg}");
+}
+
+/// An OBJ text of `blocks` runs of `per_block` vertices (every other one coloured, each with a
+/// normal), each run followed by faces naming vertices anywhere before them, by absolute and
+/// by relative index.
+fn scattered_obj(blocks: usize, per_block: usize) -> String {
+    use std::fmt::Write;
+    let mut text = String::new();
+    let mut state = 7u64;
+    let mut next = |m: usize| {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 33) as usize % m
+    };
+    for b in 0..blocks {
+        for i in b * per_block..(b + 1) * per_block {
+            let x = i as f32 * 0.001;
+            let colour = match i % 2 {
+                0 => format!(" 0.5 0.25 {}", (i % 7) as f32 / 7.0),
+                _ => String::new(),
+            };
+            writeln!(text, "v {x} {} {}{colour}\nvn 0 {} 1", x * x, -x, i % 3).unwrap();
+        }
+        let have = (b + 1) * per_block;
+        for _ in 0..per_block / 4 {
+            let [a, c] = [next(have) + 1, next(have) + 1];
+            let back = next(have.min(1000)) + 1;
+            writeln!(text, "f {a}//{a} -{back}//-{back} {c}//{c}").unwrap();
+        }
+    }
+    text
+}
+
+/// Vertex tables past their memory budget move to an unnamed temporary file and read back:
+/// the same triangles as in memory, the file's bytes charged to the sink and released at the
+/// end, nothing left in the folder, and the spill's vertex bound in force instead of
+/// `max_vertices`.
+#[test]
+fn vertex_tables_past_their_budget_give_the_same_triangles() {
+    use oocfmt_meshio::import::obj::ObjSpill;
+    use oocfmt_meshio::import::spill_table::SpillTo;
+    let (d, p) = obj(&scattered_obj(4, 50_000));
+    let spill_dir = tempfile::tempdir().unwrap();
+    let spill = |max_vertices| ObjOptions {
+        max_vertices: 10,
+        spill: Some(ObjSpill {
+            to: SpillTo {
+                dir: spill_dir.path().to_path_buf(),
+                resident_bytes: 1 << 20,
+            },
+            max_vertices,
+        }),
+        ..ObjOptions::default()
+    };
+    let kept = record(&p);
+    let mut moved = Recorder::default();
+    import(&p, &mut moved, &spill(1 << 20)).unwrap();
+    assert_eq!(kept.triangles.len(), 50_000);
+    assert!(kept.triangles == moved.triangles, "the triangles differ");
+    assert_eq!(kept.disk, (0, 0));
+    // 200 000 vertices in pages of 65 536: 1 MiB keeps one page of positions and of normals
+    // (12 bytes a record), three of colours (5 bytes), so 3, 3 and 1 pages move.
+    assert_eq!(moved.disk.0, (3 + 3) * 65_536 * 12 + 65_536 * 5);
+    assert_eq!(moved.disk.0, moved.disk.1);
+    assert_eq!(std::fs::read_dir(spill_dir.path()).unwrap().count(), 0);
+    let msg = error_text(load_with(&p, false, &spill(100_000)));
+    assert!(
+        msg.contains("vertex positions") && msg.contains("limit of 100000"),
+        "{msg}"
+    );
+    drop(d);
 }
 
 #[test]
