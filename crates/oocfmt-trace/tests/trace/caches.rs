@@ -479,6 +479,12 @@ fn fetchers_run_at_the_nice_value_asked_for() {
     // test's fetcher value).
     let tid = rustix::thread::gettid();
     let start = rustix::process::getpriority_process(Some(tid)).unwrap();
+    if start + 4 + 7 > 19 {
+        // Run under `nice` so far that 4 + 7 levels more pass 19: every thread is at 19 and
+        // the fetchers' level cannot be told from the others'.
+        eprintln!("skipped: this process runs at nice {start}");
+        return;
+    }
     rustix::process::setpriority_process(Some(tid), (start + 4).min(19)).unwrap();
     let mine = own();
     assert!(mine.is_some());
