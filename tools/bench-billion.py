@@ -9,7 +9,8 @@ pipe and convert it out of core, verify it, walk it from a cold start, and tabul
   2. `verify --deep` with the page cache emptied first (root, or `sudo -n`), timed;
   3. the cold walkthrough of tools/bench-cold.py (approach and orbit, --frames + --hold frames,
      --cache-mb), with the async cache through the page cache, the async cache past it
-     (`--io direct`) and mmap, --runs cold and warm runs each, frame by frame (--per-frame);
+     (`--io direct`) and mmap, --runs cold and warm runs each, frame by frame (--per-frame),
+     optionally in a memory group of --memory-limit-mb;
   4. `curve` at PoE 1, 2 and 3 with the async cache, without and with shadow rays: the warm
      frame time, the working set, and the error on the model's pixels against the true picture
      (full detail, --reference-spp rays per pixel, through a blocking cache of --reference-mb).
@@ -76,6 +77,8 @@ def walkthrough(a, model):
            "--configs", "buffered,direct,mmap", "--runs", str(a.runs), "--cache-mb", str(a.cache_mb),
            "--poe", a.walk_poe, "--frames", str(a.frames), "--hold", str(a.hold), "--per-frame",
            "--json", out, "--dir", a.dir]
+    if a.memory_limit_mb:
+        cmd += ["--memory-limit-mb", str(a.memory_limit_mb)]
     print("$ " + " ".join(cmd[1:]), flush=True)
     subprocess.run(cmd, check=True)
     with open(out) as f:
@@ -132,6 +135,10 @@ def main():
     p.add_argument("--frames", type=int, default=30)
     p.add_argument("--hold", type=int, default=5)
     p.add_argument("--walk-poe", default="1")
+    p.add_argument("--memory-limit-mb", type=int,
+                   help="walk in a memory group of this many MiB (process and page cache; "
+                   "tools/bench-cold.py): a model smaller than the machine's RAM is then larger "
+                   "than the renderer's memory")
     p.add_argument("--cache-mb", type=int, default=2048)
     p.add_argument("--repeat", type=int, default=3, help="curve: timed frames per PoE")
     p.add_argument("--reference-spp", type=int, default=16)

@@ -50,7 +50,8 @@ pub struct Args {
     pub lod: Option<LodArg>,
     /// Block cache: `async` (fetcher threads load blocks in the background, rays never wait
     /// and show coarser levels meanwhile; a single frame is rendered until every block it
-    /// wants is loaded), `blocking` (a ray waits for every block it needs: the exact
+    /// wants is loaded, or with a warning once 16 frames in a row had to evict blocks without
+    /// getting closer: a --cache-mb too small for the view), `blocking` (a ray waits for every block it needs: the exact
     /// reference), `mmap` (the container mapped into memory and paged by the operating system;
     /// needs a container converted with `--codec none`)
     #[arg(long, value_enum, default_value = "async")]

@@ -205,6 +205,12 @@ fn stepped(cache: &dyn BlockCache, (image, mut stats): (Image, FrameStats)) -> F
 
 /// The most frames [`settle`] renders for a still view with the async cache.
 pub const MAX_SETTLE_FRAMES: u32 = 1000;
+/// Frames in a row after which [`settle`] gives up when each evicted blocks and none found
+/// fewer missing blocks than the best frame so far: the budget cannot hold the view, so the
+/// fetchers evict what they loaded before and would go on reading the file for nothing. (While
+/// the cache has room, a view descending level by level may want more blocks at each level;
+/// that never counts.)
+pub const SETTLE_PATIENCE: u32 = 16;
 
 /// A still view rendered until it found what it wants.
 pub struct Settled {
@@ -213,14 +219,15 @@ pub struct Settled {
     /// Frames rendered, the last included.
     pub frames: u32,
     /// Whether the last frame found every block it wanted. Only the async cache can fall
-    /// short, when [`MAX_SETTLE_FRAMES`] were not enough (a budget too small for the view);
-    /// the image is then coarser where blocks are missing.
+    /// short, when [`MAX_SETTLE_FRAMES`] were not enough or progress stalled (a budget too
+    /// small for the view); the image is then coarser where blocks are missing.
     pub complete: bool,
 }
 
 /// Renders a still view until a frame finds every block it wants: with the async cache,
-/// letting the fetchers finish between frames, at most [`MAX_SETTLE_FRAMES`] frames; with the
-/// others (which load on demand), one frame.
+/// letting the fetchers finish between frames, at most [`MAX_SETTLE_FRAMES`] frames, and
+/// fewer when [`SETTLE_PATIENCE`] frames in a row make no progress; with the others (which
+/// load on demand), one frame.
 pub fn settle(
     scene: &Scene,
     cache: &Cache,
@@ -237,11 +244,25 @@ pub fn settle(
             complete: true,
         });
     };
-    while last.stats.cache.blocks_wanted_last_frame > 0 && frames < MAX_SETTLE_FRAMES {
+    let (mut best, mut stalled) = (last.stats.cache.blocks_wanted_last_frame, 0);
+    let mut evicted_before = no_room(&last);
+    while last.stats.cache.blocks_wanted_last_frame > 0
+        && frames < MAX_SETTLE_FRAMES
+        && stalled < SETTLE_PATIENCE
+    {
         ac.wait_for_fetchers();
         c.end_frame();
         last = frame(scene, c, camera, opts)?;
         frames += 1;
+        let out = no_room(&last);
+        let evicted = out > evicted_before;
+        evicted_before = out;
+        let wanted = last.stats.cache.blocks_wanted_last_frame;
+        (best, stalled) = match (wanted < best, evicted) {
+            (true, _) => (wanted, 0),
+            (false, true) => (best, stalled + 1),
+            (false, false) => (best, 0),
+        };
     }
     let complete = last.stats.cache.blocks_wanted_last_frame == 0;
     Ok(Settled {
@@ -249,6 +270,11 @@ pub fn settle(
         frames,
         complete,
     })
+}
+
+/// Blocks the cache had no room for so far: evicted, or loaded and dropped at once.
+fn no_room(f: &Frame) -> u64 {
+    f.stats.cache.blocks_evicted + f.stats.cache.blocks_dropped
 }
 
 /// One walkthrough frame's figures. The blocks requested, loaded and evicted, the lookups and

@@ -171,6 +171,24 @@ fn a_still_view_settles_with_the_async_cache_to_the_blocking_image() {
         let (expected, _) = render(&scene, &reference, cam, &OPTS).unwrap();
         assert_eq!(settled.frame.image.rgb, expected.rgb);
     }
+    // A budget of one block cannot hold the view: the settling gives up once 16 frames in a
+    // row miss no fewer blocks than the best, instead of reading the file for 1000 frames.
+    let (scene, tiny) = Cache::open(
+        &path,
+        None,
+        CacheKind::Async,
+        64 << 10,
+        &AsyncOptions::default(),
+        None,
+    )
+    .unwrap();
+    let settled = session::settle(&scene, &tiny, &cams[0], &OPTS).unwrap();
+    assert!(!settled.complete);
+    assert!(
+        settled.frames <= 1 + 4 * session::SETTLE_PATIENCE,
+        "{}",
+        settled.frames
+    );
     // A cache that loads on demand settles in one frame.
     let (scene, blocking) = open(&path, CacheKind::Blocking, &AsyncOptions::default());
     let settled = session::settle(&scene, &blocking, &cams[0], &OPTS).unwrap();
