@@ -55,5 +55,5 @@ pub use trailer::Trailer;
 pub use writer::{EncodedBlock, WriteOptions, WriteSummary, Writer};
 
 #[cfg(doctest)]
-#[doc = include_str!("../../../README.md")]
-pub struct ReadmeDoctests;
+#[doc = include_str!("../../../docs/library.md")]
+pub struct LibraryDoctests;
