@@ -21,7 +21,8 @@ use oocfmt_meshio::import::{self, ImportError, Recentre, TriangleSink};
 /// peak RSS over triangle count of release `oocfmt convert` runs was 336–369 B on generated
 /// Mandelbulbs (1M–10M triangles) and 1 114 B on 1M triangles of generated CAD clutter, whose
 /// thin overlapping parts are referenced by many leaves. A scene over `--mem-limit` at this
-/// rate is built out of core, in chunks of at most `--mem-limit` / this many triangles.
+/// rate is built out of core, in chunks of at most half `--mem-limit` / this many triangles,
+/// two built at once.
 pub const BYTES_PER_TRIANGLE_IN_CORE: u64 = 1152;
 
 /// The input name that stands for standard input.

@@ -116,6 +116,19 @@ impl TreePlan {
         self.info.get(id.index()).copied().unwrap_or_default()
     }
 
+    /// Renumbers the proxies as if planned with a `proxy_base` larger by `by`: a chunk is
+    /// planned before the proxies of the chunks before it are counted.
+    pub fn shift_proxies(&mut self, by: u32) -> Result<(), LayoutError> {
+        for i in self.info.iter_mut().filter(|i| i.proxy != NO_PROXY) {
+            i.proxy = i
+                .proxy
+                .checked_add(by)
+                .filter(|&id| id != NO_PROXY)
+                .ok_or(LayoutError::TooMany("LOD nodes"))?;
+        }
+        Ok(())
+    }
+
     pub fn lod_data(&self, id: NodeId) -> Option<&LodData> {
         self.lod.get(self.info(id).lod as usize)
     }

@@ -175,36 +175,53 @@ fn load_mesh(
     Ok((mesh, primary))
 }
 
-/// What every chunk of one build is built with, and the spill their blocks go to.
+/// What every chunk of one build is built with.
 pub struct ChunkBuilder<'a> {
     pub facts: &'a SceneFacts,
     pub kd: &'a KdBuildOptions,
     pub layout: &'a LayoutOptions,
-    pub spill: BlockSpill,
     /// Where the chunks' runs are accounted (reading one deletes it).
     pub disk: &'a Arc<SpillDisk>,
 }
 
+/// The nearest shaded hit in one chunk of each ray of one top LOD node.
+pub type Hits = Vec<Option<(f64, Seen)>>;
+
+/// A chunk built in memory and waiting for its turn: chunks are built several at once, but
+/// spilled in chunk order, because the proxy ids and the spill streams number them in that
+/// order. Everything is encoded but the treelet blocks, which hold proxy ids.
+pub struct BuiltChunk {
+    tree: KdTree,
+    plan: TreePlan,
+    leaves: Vec<Option<LeafRef>>,
+    /// Raw triangle blocks with their triangle counts.
+    triangles: Vec<(u32, Vec<u8>)>,
+    /// Everything but the blocks, which [`BuiltChunk::spill`] adds.
+    out: ChunkOut,
+    /// For each list of rays given to [`ChunkBuilder::build`], its hits in this chunk.
+    hits: Vec<Hits>,
+}
+
 impl ChunkBuilder<'_> {
-    /// Builds chunk `chunk`, answers the pending rays of the top LOD nodes above it, measures
-    /// its surface against their R-LOD `planes`, and spills its blocks. `proxy_base` is the id
-    /// of its first proxy.
+    /// Builds chunk `chunk` in memory with proxy ids from 0: its nearest hits of the pending
+    /// `rays` of the top LOD nodes above it, and its surface measured against their R-LOD
+    /// `planes` (as fitted; the pieces are widened into them in chunk order). Reads nothing
+    /// another chunk writes, so chunks can be built at once.
     pub fn build(
-        &mut self,
+        &self,
         chunk: &Chunk,
-        proxy_base: u32,
-        rays: &mut [&mut [PendingRay]],
+        rays: &[&[PendingRay]],
         planes: &[(usize, PlaneFit)],
-    ) -> Result<ChunkOut, OocError> {
+    ) -> Result<BuiltChunk, OocError> {
         let (mesh, primary) = load_mesh(chunk, self.facts, self.disk)?;
         let plane_pieces = plane_pieces(&mesh, chunk, planes);
         let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
         let kd = self.kd;
         let nodes = build_cell(&mesh, all, chunk.cell, chunk.depth + 1, kd)?;
         let tree = KdTree::from_parts(&mesh, nodes, Some(NodeId(0)), chunk.cell, kd.params())?;
-        answer_rays(&mesh, &tree, &chunk.cell, rays);
+        let hits = answer_rays(&mesh, &tree, &chunk.cell, rays);
 
-        let plan = self.plan(&mesh, &tree, chunk, proxy_base)?;
+        let plan = self.plan(&mesh, &tree, chunk)?;
         let vertices = VertexTable::new(&mesh);
         let stored_elsewhere: Vec<bool> = primary.iter().map(|p| !p).collect();
         let (attrs, block_size) = (self.facts.attrs, self.facts.block_size);
@@ -215,21 +232,16 @@ impl ChunkBuilder<'_> {
             depth: chunk.depth + plan.depth,
             ..ChunkCounts::default()
         };
-        let mut treelet_blocks = Vec::with_capacity(plan.blocks.len());
         for b in &plan.blocks {
-            let raw = encode_treelets(b, &tree, &plan, &tri_plan.leaves, 0)?;
-            let n =
-                u32::try_from(b.treelets.len()).map_err(|_| LayoutError::TooMany("treelets"))?;
-            treelet_blocks.push(self.spill.push(BlockKind::Treelet, b.level, n, &raw)?);
             for &t in &b.treelets {
                 count_treelet(&plan, t, &mut counts);
             }
         }
-        let mut triangle_blocks = Vec::with_capacity(tri_plan.blocks.len());
+        let mut triangles = Vec::with_capacity(tri_plan.blocks.len());
         for b in &tri_plan.blocks {
             let (raw, c) = encode_triangles(b, &mesh, &vertices, attrs)?;
             let n = u32::try_from(c.triangles).map_err(|_| LayoutError::TooMany("triangles"))?;
-            triangle_blocks.push(self.spill.push(BlockKind::Triangle, 0, n, &raw)?);
+            triangles.push((n, raw));
             counts.triangles.primaries += c.primaries;
             counts.triangles.triangles += c.triangles;
             counts.triangles.vertices += c.vertices;
@@ -245,27 +257,29 @@ impl ChunkBuilder<'_> {
             true => Vec::new(),
             false => parts::tally(&mesh, is_primary),
         };
-        Ok(ChunkOut {
+        let out = ChunkOut {
             upper: upper_nodes(&tree, &plan, &tri_plan.leaves)?,
-            treelet_blocks,
-            triangle_blocks,
+            treelet_blocks: Vec::new(),
+            triangle_blocks: Vec::new(),
             proxies,
             counts,
             area,
             plane_pieces,
             parts: part_stats,
+        };
+        Ok(BuiltChunk {
+            tree,
+            plan,
+            leaves: tri_plan.leaves,
+            triangles,
+            out,
+            hits,
         })
     }
 
     /// Plans the chunk's treelet blocks: its top treelet detached for the top layout, its LOD
-    /// levels numbered on from the depth of its root, its proxies from `proxy_base`.
-    fn plan(
-        &self,
-        mesh: &Mesh,
-        tree: &KdTree,
-        chunk: &Chunk,
-        proxy_base: u32,
-    ) -> Result<TreePlan, LayoutError> {
+    /// levels numbered on from the depth of its root, its proxies from 0.
+    fn plan(&self, mesh: &Mesh, tree: &KdTree, chunk: &Chunk) -> Result<TreePlan, LayoutError> {
         let layout = self.layout;
         let h = u32::from(layout.treelet_height.max(1));
         let first_level =
@@ -284,7 +298,7 @@ impl ChunkBuilder<'_> {
                 block_size: self.facts.block_size,
                 max_proxies,
                 depth_offset: chunk.depth,
-                proxy_base,
+                proxy_base: 0,
                 detach_root: true,
                 first_level,
                 lod: LodSource::Sample {
@@ -295,6 +309,57 @@ impl ChunkBuilder<'_> {
                 external: &external,
             },
         )
+    }
+}
+
+impl BuiltChunk {
+    /// Spills the chunk's blocks, its proxy ids counted from `proxy_base` (the proxies of the
+    /// chunks before it), and gives `rays` its hits where they are nearer than the ones found
+    /// so far (an earlier chunk's on a tie). `rays` are the lists given to the build.
+    pub fn spill(
+        self,
+        spill: &mut BlockSpill,
+        proxy_base: u32,
+        rays: &mut [&mut [PendingRay]],
+    ) -> Result<ChunkOut, OocError> {
+        let BuiltChunk {
+            tree,
+            mut plan,
+            leaves,
+            triangles,
+            mut out,
+            hits,
+        } = self;
+        plan.shift_proxies(proxy_base)?;
+        out.treelet_blocks.reserve(plan.blocks.len());
+        for b in &plan.blocks {
+            let raw = encode_treelets(b, &tree, &plan, &leaves, 0)?;
+            let n =
+                u32::try_from(b.treelets.len()).map_err(|_| LayoutError::TooMany("treelets"))?;
+            out.treelet_blocks
+                .push(spill.push(BlockKind::Treelet, b.level, n, &raw)?);
+        }
+        out.triangle_blocks.reserve(triangles.len());
+        for (n, raw) in &triangles {
+            out.triangle_blocks
+                .push(spill.push(BlockKind::Triangle, 0, *n, raw)?);
+        }
+        for (list, found) in rays.iter_mut().zip(&hits) {
+            take_nearer(list, found);
+        }
+        Ok(out)
+    }
+}
+
+/// Gives each ray its hit in one more chunk where that is nearer than the one found so far
+/// (the earlier chunk's on a tie).
+pub(super) fn take_nearer(rays: &mut [PendingRay], hits: &[Option<(f64, Seen)>]) {
+    for (r, hit) in rays.iter_mut().zip(hits) {
+        match (r.best, hit) {
+            (_, None) => {}
+            (Some((t, _)), Some((h, _))) if t <= *h => {}
+            (_, Some(h)) => r.best = Some(*h),
+        }
     }
 }
 
@@ -433,31 +498,28 @@ fn upper_nodes(
 }
 
 /// Traces the pending rays through this chunk: the part of each ray inside the chunk's cell,
-/// against the chunk's triangles; a nearer hit replaces the one found so far.
+/// against the chunk's triangles. Returns, list by list, each ray's nearest shaded hit here.
 pub(super) fn answer_rays(
     mesh: &Mesh,
     tree: &KdTree,
     cell: &Bounds,
-    rays: &mut [&mut [PendingRay]],
-) {
-    let Some(root) = tree.root() else { return };
+    rays: &[&[PendingRay]],
+) -> Vec<Hits> {
+    let Some(root) = tree.root() else {
+        return rays.iter().map(|list| vec![None; list.len()]).collect();
+    };
     let mut tracer = Tracer::new(mesh, tree);
-    for r in rays.iter_mut().flat_map(|list| list.iter_mut()) {
-        let Some((c0, c1)) = clip_to_box(&r.ray, cell) else {
-            continue;
-        };
+    let mut answer = |r: &PendingRay| {
+        let (c0, c1) = clip_to_box(&r.ray, cell)?;
         let (t0, t1) = (c0.max(0.0), c1.min(r.t1));
         if t0 > t1 + r.eps {
-            continue;
+            return None;
         }
-        let Some(hit) = tracer.first_hit(root, &r.ray, t0, t1, r.eps) else {
-            continue;
-        };
-        if r.best.is_some_and(|(t, _)| t <= hit.t) {
-            continue;
-        }
-        if let Some(s) = shade(mesh, &hit, r.ray.dir) {
-            r.best = Some((hit.t, (s, parts::part_of(mesh, hit.triangle as usize))));
-        }
-    }
+        let hit = tracer.first_hit(root, &r.ray, t0, t1, r.eps)?;
+        let s = shade(mesh, &hit, r.ray.dir)?;
+        Some((hit.t, (s, parts::part_of(mesh, hit.triangle as usize))))
+    };
+    rays.iter()
+        .map(|list| list.iter().map(&mut answer).collect())
+        .collect()
 }

@@ -3,7 +3,8 @@
 //! streaming passes (`split`), and each chunk that fits is built, sampled and laid out in
 //! memory on its own (`chunk`), its deeper blocks spilled. The median-split nodes and the
 //! chunks' top treelets form a small tree laid out last (`top`), and `assemble` writes
-//! everything in the order the spec requires. Memory holds one chunk at a time, plus the top.
+//! everything in the order the spec requires. Memory holds two chunks at a time (each in half the
+//! budget), plus the top.
 
 pub(crate) mod assemble;
 pub(crate) mod blocks;
@@ -26,6 +27,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
+use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use oocfmt::metadata::{Build, Counts, Provenance, Scene, Schema, TreeletRef};
@@ -168,9 +170,16 @@ pub struct OocStats {
     pub top_lod_nodes: u64,
 }
 
+/// Chunks built at once, each in an equal share of the memory budget: while one chunk's
+/// serial parts run (its load and vertex de-duplication, its block encoding), the other's
+/// parallel parts keep the workers busy. A constant, not the thread count, so that the chunks,
+/// and the bytes, are the same on every machine.
+pub(crate) const CHUNKS_AT_ONCE: usize = 2;
+
 /// How an out-of-core build cuts and spills the scene.
 pub(crate) struct Chunking<'a> {
-    /// Most triangles (about) held in memory at once.
+    /// Most triangles (about) held in memory at once: [`CHUNKS_AT_ONCE`] chunks hold this
+    /// many together.
     pub chunk_triangles: u64,
     /// The folder of the spill files.
     pub dir: &'a Path,
@@ -307,7 +316,7 @@ impl<'a> OocBuild<'a> {
             disk,
             kd,
             layout,
-            budget: chunking.chunk_triangles.max(1),
+            budget: (chunking.chunk_triangles / CHUNKS_AT_ONCE as u64).max(1),
             dir: chunking.dir,
             block_size,
             schema,
@@ -355,8 +364,9 @@ impl<'a> OocBuild<'a> {
         )
     }
 
-    /// Builds every chunk in turn and spills its blocks; each chunk answers the rays of the
-    /// `top_lod` nodes above it and widens their R-LOD `planes` by its deviation.
+    /// Builds the chunks [`CHUNKS_AT_ONCE`] at a time and spills their blocks in chunk order;
+    /// each chunk answers the rays of the `top_lod` nodes above it and widens their R-LOD
+    /// `planes` by its deviation. The bytes do not depend on how many are built at once.
     pub(crate) fn build_chunks(
         &self,
         tree: &TopTree,
@@ -364,42 +374,57 @@ impl<'a> OocBuild<'a> {
         mut top_lod: Vec<top::TopLod>,
         progress: &mut dyn Progress,
     ) -> Result<(Chunks, BlockSpill), OocError> {
-        let mut builder = ChunkBuilder {
+        let builder = ChunkBuilder {
             facts: &self.facts,
             kd: self.kd,
             layout: self.layout,
-            spill: BlockSpill::new(self.dir, self.disk.clone()),
             disk: self.disk,
         };
+        let mut spill = BlockSpill::new(self.dir, self.disk.clone());
         let mut outs: Vec<ChunkOut> = Vec::with_capacity(tree.chunks.len());
         let mut chunk_proxies = Vec::new();
         let mut proxy_count = 0u32;
+        // A chunk measures its deviation from the planes as fitted; the pieces are widened in.
+        let fitted = planes.clone();
         progress.phase("chunks", Some(tree.chunks.len() as u64));
-        for (i, c) in tree.chunks.iter().enumerate() {
-            let mut rays: Vec<&mut [chunk::PendingRay]> = top_lod
-                .iter_mut()
-                .filter(|t| c.ancestors.contains(&t.node))
-                .map(|t| t.rays.as_mut_slice())
+        for window in tree.chunks.chunks(CHUNKS_AT_ONCE) {
+            let built: Vec<Result<chunk::BuiltChunk, OocError>> = window
+                .par_iter()
+                .map(|c| {
+                    let rays: Vec<&[chunk::PendingRay]> = top_lod
+                        .iter()
+                        .filter(|t| c.ancestors.contains(&t.node))
+                        .map(|t| t.rays.as_slice())
+                        .collect();
+                    let above: Vec<(usize, PlaneFit)> = c
+                        .ancestors
+                        .iter()
+                        .filter_map(|a| fitted.get(a).map(|p| (*a, *p)))
+                        .collect();
+                    builder.build(c, &rays, &above)
+                })
                 .collect();
-            let above: Vec<(usize, PlaneFit)> = c
-                .ancestors
-                .iter()
-                .filter_map(|a| planes.get(a).map(|p| (*a, *p)))
-                .collect();
-            let mut out = builder.build(c, proxy_count, &mut rays, &above)?;
-            for (node, piece) in &out.plane_pieces {
-                if let Some(p) = planes.get_mut(node) {
-                    p.widen(piece);
+            for (c, b) in window.iter().zip(built) {
+                let mut rays: Vec<&mut [chunk::PendingRay]> = top_lod
+                    .iter_mut()
+                    .filter(|t| c.ancestors.contains(&t.node))
+                    .map(|t| t.rays.as_mut_slice())
+                    .collect();
+                let mut out = b?.spill(&mut spill, proxy_count, &mut rays)?;
+                for (node, piece) in &out.plane_pieces {
+                    if let Some(p) = planes.get_mut(node) {
+                        p.widen(piece);
+                    }
                 }
+                let n = u32::try_from(out.proxies.len() / oocfmt::records::PROXY_LEN)
+                    .map_err(|_| LayoutError::TooMany("proxies"))?;
+                proxy_count = proxy_count
+                    .checked_add(n)
+                    .ok_or(LayoutError::TooMany("proxies"))?;
+                chunk_proxies.push(std::mem::take(&mut out.proxies));
+                outs.push(out);
+                progress.advance(outs.len() as u64);
             }
-            let n = u32::try_from(out.proxies.len() / oocfmt::records::PROXY_LEN)
-                .map_err(|_| LayoutError::TooMany("proxies"))?;
-            proxy_count = proxy_count
-                .checked_add(n)
-                .ok_or(LayoutError::TooMany("proxies"))?;
-            chunk_proxies.push(std::mem::take(&mut out.proxies));
-            outs.push(out);
-            progress.advance(i as u64 + 1);
         }
         progress.finish_phase();
         let chunks = Chunks {
@@ -410,7 +435,7 @@ impl<'a> OocBuild<'a> {
             top_lod,
             planes,
         };
-        Ok((chunks, builder.spill))
+        Ok((chunks, spill))
     }
 
     /// Lays out the top over the built `chunks`, whose blocks `blocks` holds, and writes the

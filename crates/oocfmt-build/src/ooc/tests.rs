@@ -3,7 +3,7 @@
 
 use oocfmt::records::Voxel;
 
-use super::chunk::answer_rays;
+use super::chunk::{answer_rays, take_nearer};
 use super::top::{finish_top_lod, record_rays, TopLod};
 use crate::kdtree::{build_cell, KdBuildOptions, KdTree, NodeId};
 use crate::layout::parts::part_of;
@@ -123,7 +123,8 @@ fn sampling_in_pieces_matches_sampling_the_whole() {
     let (left, right) = cell.split(0, 2.0);
     for half in [left, right] {
         let (part, tree) = chunk_of(&mesh, half);
-        answer_rays(&part, &tree, &half, &mut [rays.as_mut_slice()]);
+        let hits = answer_rays(&part, &tree, &half, &[rays.as_slice()]);
+        take_nearer(&mut rays, hits.first().map_or(&[][..], Vec::as_slice));
     }
     let lod = TopLod {
         node: 0,
