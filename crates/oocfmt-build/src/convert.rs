@@ -316,10 +316,7 @@ fn run_convert(
             output,
             &opts.kd,
             &layout,
-            ooc::Chunking {
-                chunk_triangles,
-                dir: spill,
-            },
+            ooc::Chunking::new(chunk_triangles, spill),
             &mut phases,
             progress,
         )?;
@@ -351,7 +348,7 @@ fn source_name(path: &Path) -> String {
 
 /// Imports `inputs` into a spill file in `dir`, positions relative to `origin`. A scene of at
 /// most `chunk_triangles` triangles is also kept in memory as it is read.
-fn import_soup(
+pub(crate) fn import_soup(
     inputs: &[PathBuf],
     opts: &ConvertOptions,
     dir: &Path,

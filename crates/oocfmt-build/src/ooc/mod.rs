@@ -19,6 +19,8 @@ mod tee;
 pub(crate) mod top;
 
 #[cfg(test)]
+mod at_once;
+#[cfg(test)]
 mod full_disk;
 #[cfg(test)]
 mod tests;
@@ -178,11 +180,24 @@ pub(crate) const CHUNKS_AT_ONCE: usize = 2;
 
 /// How an out-of-core build cuts and spills the scene.
 pub(crate) struct Chunking<'a> {
-    /// Most triangles (about) held in memory at once: [`CHUNKS_AT_ONCE`] chunks hold this
+    /// Most triangles (about) held in memory at once: the chunks built at once hold this
     /// many together.
     pub chunk_triangles: u64,
+    /// Chunks built at once: [`CHUNKS_AT_ONCE`], except in the test that compares it with 1.
+    pub at_once: usize,
     /// The folder of the spill files.
     pub dir: &'a Path,
+}
+
+impl<'a> Chunking<'a> {
+    /// `chunk_triangles` in memory, [`CHUNKS_AT_ONCE`] chunks at once, spill files in `dir`.
+    pub(crate) fn new(chunk_triangles: u64, dir: &'a Path) -> Chunking<'a> {
+        Chunking {
+            chunk_triangles,
+            at_once: CHUNKS_AT_ONCE,
+            dir,
+        }
+    }
 }
 
 /// Builds the container at `output` from the spill run of `soup`, as `chunking` says. Each
@@ -219,6 +234,8 @@ pub(crate) struct OocBuild<'a> {
     layout: &'a LayoutOptions,
     /// Most triangles a chunk holds (at least 1).
     budget: u64,
+    /// Chunks built at once (at least 1).
+    at_once: usize,
     dir: &'a Path,
     block_size: usize,
     schema: Schema,
@@ -316,7 +333,8 @@ impl<'a> OocBuild<'a> {
             disk,
             kd,
             layout,
-            budget: (chunking.chunk_triangles / CHUNKS_AT_ONCE as u64).max(1),
+            budget: (chunking.chunk_triangles / chunking.at_once.max(1) as u64).max(1),
+            at_once: chunking.at_once.max(1),
             dir: chunking.dir,
             block_size,
             schema,
@@ -364,7 +382,7 @@ impl<'a> OocBuild<'a> {
         )
     }
 
-    /// Builds the chunks [`CHUNKS_AT_ONCE`] at a time and spills their blocks in chunk order;
+    /// Builds the chunks several at a time (`at_once`) and spills their blocks in chunk order;
     /// each chunk answers the rays of the `top_lod` nodes above it and widens their R-LOD
     /// `planes` by its deviation. The bytes do not depend on how many are built at once.
     pub(crate) fn build_chunks(
@@ -387,7 +405,7 @@ impl<'a> OocBuild<'a> {
         // A chunk measures its deviation from the planes as fitted; the pieces are widened in.
         let fitted = planes.clone();
         progress.phase("chunks", Some(tree.chunks.len() as u64));
-        for window in tree.chunks.chunks(CHUNKS_AT_ONCE) {
+        for window in tree.chunks.chunks(self.at_once) {
             let built: Vec<Result<chunk::BuiltChunk, OocError>> = window
                 .par_iter()
                 .map(|c| {

@@ -195,10 +195,7 @@ impl Job<'_> {
         }
         let records = run.count;
         let layout = plan_layout(plan, opts);
-        let chunking = Chunking {
-            chunk_triangles: opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE,
-            dir: self.dir,
-        };
+        let chunking = Chunking::new(opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE, self.dir);
         let b = OocBuild::new(&scene, &disk, &opts.kd, &layout, &chunking)?;
         let mut tree = b.split(run, self.top.tree.clone(), cell.start(), progress)?;
         let planes = std::mem::take(&mut tree.planes);

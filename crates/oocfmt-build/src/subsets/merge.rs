@@ -84,10 +84,10 @@ pub fn merge(
     };
     let disk = Arc::new(SpillDisk::new());
     let layout = plan_layout(&plan, opts);
-    let chunking = Chunking {
-        chunk_triangles: opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE,
-        dir: folder_of(output),
-    };
+    let chunking = Chunking::new(
+        opts.mem_limit / BYTES_PER_TRIANGLE_IN_CORE,
+        folder_of(output),
+    );
     let b = OocBuild::new(&scene, &disk, &opts.kd, &layout, &chunking)?;
     let (copied_blocks, copied_bytes) = joined.chunks.outs.iter().fold((0, 0), |(n, bytes), o| {
         let all = o.treelet_blocks.iter().chain(&o.triangle_blocks);

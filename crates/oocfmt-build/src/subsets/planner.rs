@@ -227,10 +227,7 @@ impl Passes<'_> {
     ) -> Result<Plan, SubsetError> {
         let opts = self.opts;
         let disk = Arc::new(SpillDisk::new());
-        let chunking = Chunking {
-            chunk_triangles: 1,
-            dir: Path::new("."),
-        };
+        let chunking = Chunking::new(1, Path::new("."));
         let b = OocBuild::new(scene, &disk, &opts.kd, &opts.layout, &chunking)?;
         let lod = &opts.layout;
         let rlod_height = lod.write.lod.rlod.then_some(lod.treelet_height);
