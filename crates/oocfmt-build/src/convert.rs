@@ -15,6 +15,7 @@ use crate::ooc::{self, OocError};
 use crate::progress::Progress;
 use crate::report::{peak_memory, BlockStats, ConvertReport, PhaseClock};
 use crate::spill_dir::{self, SpillDir};
+use oocfmt_meshio::import::spill_table::VertexSpill;
 use oocfmt_meshio::import::{self, ImportError, Recentre, TriangleSink};
 
 /// Bytes of memory the in-core build needs per input triangle, for the worst scene measured:
@@ -47,6 +48,8 @@ pub struct ConvertOptions {
     pub mem_limit: u64,
     /// How `.obj` inputs are read.
     pub obj: import::obj::ObjOptions,
+    /// How `.ply` inputs are read.
+    pub ply: import::ply::PlyOptions,
     /// How `.gltf` and `.glb` inputs are read.
     pub gltf: import::gltf::GltfOptions,
     /// The scene origin positions are stored relative to.
@@ -70,6 +73,7 @@ impl Default for ConvertOptions {
             strict: false,
             mem_limit: crate::report::total_memory().map_or(4 << 30, |m| m / 2),
             obj: Default::default(),
+            ply: Default::default(),
             gltf: Default::default(),
             recentre: Recentre::default(),
             tmp_dir: None,
@@ -374,21 +378,25 @@ pub(crate) fn import_soup(
     Ok(finish_soup(sink)?)
 }
 
-/// `opts` with OBJ vertex tables beyond an eighth of the memory limit each (positions,
-/// normals, colours) moved to `dir`, unless the caller chose a spill: a billion-triangle OBJ
-/// file has half a billion vertices.
+/// `opts` with OBJ and PLY vertex tables beyond an eighth of the memory limit each
+/// (positions, normals, colours) moved to `dir`, unless the caller chose a spill: a
+/// billion-triangle model has half a billion vertices.
 fn with_vertex_spill(opts: &ConvertOptions, dir: &Path) -> ConvertOptions {
     let mut opts = opts.clone();
-    if opts.obj.spill.is_some() {
-        return opts;
-    }
-    opts.obj.spill = Some(import::obj::ObjSpill {
+    let spill = |max_vertices: usize| VertexSpill {
         to: import::spill_table::SpillTo {
             dir: dir.to_path_buf(),
             resident_bytes: usize::try_from(opts.mem_limit / 8).unwrap_or(usize::MAX),
         },
-        max_vertices: import::obj::ObjSpill::MAX_VERTICES.max(opts.obj.max_vertices),
-    });
+        max_vertices: VertexSpill::MAX_VERTICES.max(max_vertices),
+    };
+    if opts.obj.spill.is_none() {
+        opts.obj.spill = Some(spill(opts.obj.max_vertices));
+    }
+    if opts.ply.spill.is_none() {
+        let max = usize::try_from(opts.ply.max_vertices).unwrap_or(usize::MAX);
+        opts.ply.spill = Some(spill(max));
+    }
     opts
 }
 
@@ -462,9 +470,9 @@ pub(crate) fn import_one(
     match format {
         Some(InputFormat::Obj) => import::obj::import(path, sink, &opts.obj)?,
         Some(InputFormat::Gltf) => import::gltf::import(path, sink, &opts.gltf)?,
-        // Their options only bound what a file can make the importer hold: the defaults.
+        // Its options only bound what a file can make the importer hold: the defaults.
         Some(InputFormat::Stl) => import::stl::import(path, sink, &Default::default())?,
-        Some(InputFormat::Ply) => import::ply::import(path, sink, &Default::default())?,
+        Some(InputFormat::Ply) => import::ply::import(path, sink, &opts.ply)?,
         None => return Err(ConvertError::UnknownFormat(path.display().to_string())),
     }
     Ok(())
@@ -486,9 +494,7 @@ fn import_stdin(
         Some(InputFormat::Stl) => {
             import::stl::import_stream(input, name, sink, &Default::default())?
         }
-        Some(InputFormat::Ply) => {
-            import::ply::import_stream(input, name, sink, &Default::default())?
-        }
+        Some(InputFormat::Ply) => import::ply::import_stream(input, name, sink, &opts.ply)?,
         Some(InputFormat::Gltf) => return Err(ConvertError::StdinGltf),
         None => return Err(ConvertError::StdinFormat),
     }

@@ -277,8 +277,8 @@ fn spill_files_go_to_the_tmp_dir_and_the_report_gives_the_disk_used() {
 /// file's bytes in the peak disk use, nothing left behind.
 #[test]
 fn obj_vertices_past_the_memory_budget_move_to_disk() {
-    use oocfmt_meshio::import::obj::ObjSpill;
     use oocfmt_meshio::import::spill_table::SpillTo;
+    use oocfmt_meshio::import::spill_table::VertexSpill;
     let dir = tempfile::tempdir().unwrap();
     let obj = dir.path().join("mb.obj");
     let opts = MandelbulbOptions {
@@ -299,7 +299,7 @@ fn obj_vertices_past_the_memory_budget_move_to_disk() {
     .unwrap();
     let in_memory = ConvertOptions {
         obj: oocfmt_meshio::import::obj::ObjOptions {
-            spill: Some(ObjSpill {
+            spill: Some(VertexSpill {
                 to: SpillTo {
                     dir: dir.path().to_path_buf(),
                     resident_bytes: 1 << 30,

@@ -182,6 +182,7 @@ impl BuildArgs {
             strict: self.strict,
             mem_limit: self.mem_limit(),
             obj: ObjOptions::default(),
+            ply: Default::default(),
             gltf: GltfOptions {
                 all_scenes: self.all_scenes,
                 ..GltfOptions::default()

@@ -54,7 +54,7 @@ use notes::{Kind, Notes};
 use parts::Parts;
 use polygon::{Outcome, Triangulator};
 
-use super::spill_table::{SpillTable, SpillTo};
+use super::spill_table::{SpillTable, VertexSpill};
 use super::{DropReason, ImportError, InputTriangle, Location, Skipped, TriangleSink};
 
 /// Bounds on what one file can make the importer hold or do.
@@ -66,7 +66,7 @@ pub struct ObjOptions {
     pub max_vertices: usize,
     /// Where vertex attributes beyond a memory budget go, and the bound on vertices then;
     /// `None`: all in memory, at most `max_vertices`.
-    pub spill: Option<ObjSpill>,
+    pub spill: Option<VertexSpill>,
     /// Most corners of one face.
     pub max_face_corners: usize,
     /// Largest material library read, in bytes.
@@ -84,23 +84,6 @@ impl Default for ObjOptions {
             spill: None,
         }
     }
-}
-
-/// Vertex tables larger than memory: each of positions, normals and colours keeps
-/// `to.resident_bytes` in memory and moves older pages to an unnamed file in `to.dir`, whose
-/// bytes the sink is told of ([`TriangleSink::charge_disk`]).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct ObjSpill {
-    /// The folder and the memory budget of each table.
-    pub to: SpillTo,
-    /// Most vertex positions (and normals) in all.
-    pub max_vertices: usize,
-}
-
-impl ObjSpill {
-    /// Room for 2^33 vertices: 96 GiB of positions on disk, beyond any file of a few hundred
-    /// GB.
-    pub const MAX_VERTICES: usize = 1 << 33;
 }
 
 /// Reads the OBJ file at `path` (and the material libraries it names) into `sink`.

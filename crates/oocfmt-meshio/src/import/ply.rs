@@ -43,6 +43,7 @@ use header::{Encoding, Header};
 use vertices::{Table, VertexPlan};
 
 use super::forward::Forward;
+use super::spill_table::VertexSpill;
 use super::stl::lines::Lines;
 use super::{ImportError, Location, TriangleSink};
 
@@ -53,8 +54,11 @@ pub struct PlyOptions {
     pub max_line_bytes: usize,
     /// Largest header, in bytes.
     pub max_header_bytes: u64,
-    /// Most vertices held.
+    /// Most vertices held in memory.
     pub max_vertices: u64,
+    /// Where vertex attributes beyond a memory budget go, and the bound on vertices then;
+    /// `None`: all in memory, at most `max_vertices`.
+    pub spill: Option<VertexSpill>,
     /// Most corners of one face.
     pub max_face_corners: usize,
 }
@@ -66,8 +70,18 @@ impl Default for PlyOptions {
             max_header_bytes: 64 << 20,
             // As for OBJ: 3 GiB of positions.
             max_vertices: 1 << 28,
+            spill: None,
             max_face_corners: 1 << 16,
         }
+    }
+}
+
+impl PlyOptions {
+    /// The bound on vertices: in memory, or with a spill.
+    pub fn vertex_bound(&self) -> u64 {
+        self.spill
+            .as_ref()
+            .map_or(self.max_vertices, |s| s.max_vertices as u64)
     }
 }
 
@@ -95,7 +109,7 @@ pub fn import_from<R: BufRead + Seek>(
 
 /// Reads a PLY stream (standard input, a pipe: no size, no seeking) from `input` into `sink`,
 /// reporting places in it as `name`. Without a size, counts are held only to
-/// [`PlyOptions::max_vertices`] and the vertex table grows as it is read; faces stored before
+/// [`PlyOptions::vertex_bound`] and the vertex table grows as it is read; faces stored before
 /// the vertices, which need a second pass, are refused.
 pub fn import_stream<R: BufRead>(
     input: R,
@@ -145,7 +159,7 @@ fn read<R: BufRead + Seek>(
 /// Refuses counts the file cannot hold: every element's records take at least
 /// [`header::Element::min_record_bytes`] each, so the sum cannot pass the `body_bytes` after
 /// the header (unknown for a stream). The vertex count is also held to
-/// [`PlyOptions::max_vertices`].
+/// [`PlyOptions::vertex_bound`].
 fn check_sizes(
     header: &Header,
     body_bytes: Option<u64>,
@@ -168,11 +182,11 @@ fn check_sizes(
                 ),
             });
         }
-        if e.name == "vertex" && e.count > opts.max_vertices {
+        if e.name == "vertex" && e.count > opts.vertex_bound() {
             return Err(ImportError::Limit {
                 at: Location::line(file, e.line),
                 what: "vertices".into(),
-                limit: opts.max_vertices,
+                limit: opts.vertex_bound(),
             });
         }
     }
@@ -271,10 +285,13 @@ impl Plan {
         for (i, e) in header.elements.iter().enumerate() {
             body.enter(e);
             if let Some((_, plan)) = self.vertex.as_ref().filter(|(v, _)| *v == i) {
-                table = Some(vertices::read(&mut body, e, plan, origin, sink, keep)?);
+                let spill = opts.spill.as_ref().map(|s| &s.to);
+                table = Some(vertices::read(
+                    &mut body, e, plan, origin, sink, keep, spill,
+                )?);
                 continue;
             }
-            match (self.faces.get(i).and_then(Option::as_ref), &table) {
+            match (self.faces.get(i).and_then(Option::as_ref), &mut table) {
                 (Some(plan), Some(t)) if keep => faces.read(&mut body, e, plan, t, sink)?,
                 (Some(_), None) if keep => {
                     deferred.push(i);
@@ -284,7 +301,7 @@ impl Plan {
             }
         }
         body.end(sink);
-        if let (Some(&last), Some(t)) = (deferred.last(), &table) {
+        if let (Some(&last), Some(t)) = (deferred.last(), &mut table) {
             body.rewind()?;
             for (i, e) in header.elements.iter().enumerate().take(last + 1) {
                 body.enter(e);
@@ -297,6 +314,9 @@ impl Plan {
             }
         }
         faces.finish(sink);
+        if let Some(t) = table.as_mut() {
+            t.release(sink);
+        }
         Ok(())
     }
 }

@@ -70,6 +70,24 @@ pub struct SpillTo {
     pub resident_bytes: usize,
 }
 
+/// Vertex tables larger than memory, for the importers that index vertices (OBJ, PLY): each of
+/// positions, normals and colours keeps `to.resident_bytes` in memory and moves older pages
+/// to an unnamed file in `to.dir`, whose bytes the sink is told of
+/// ([`super::TriangleSink::charge_disk`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct VertexSpill {
+    /// The folder and the memory budget of each table.
+    pub to: SpillTo,
+    /// Most vertices in all.
+    pub max_vertices: usize,
+}
+
+impl VertexSpill {
+    /// Room for 2^33 vertices: 96 GiB of positions on disk, beyond any file of a few hundred
+    /// GB.
+    pub const MAX_VERTICES: usize = 1 << 33;
+}
+
 /// The file of moved pages, and the pages read back from it.
 struct Moved {
     file: File,

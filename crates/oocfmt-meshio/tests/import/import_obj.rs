@@ -63,17 +63,17 @@ fn error_text(r: Result<impl std::fmt::Debug, ImportError>) -> String {
 
 /// Everything an importer tells its sink, as told.
 #[derive(Default)]
-struct Recorder {
-    parts: Vec<oocfmt_meshio::import::PartDef>,
-    files: Vec<String>,
-    materials: Vec<Material>,
-    triangles: Vec<(InputTriangle, Location)>,
-    rejects: Vec<(DropReason, Location)>,
-    skipped: BTreeMap<Skipped, u64>,
-    warnings: Vec<String>,
-    fail_on_push: bool,
+pub(crate) struct Recorder {
+    pub(crate) parts: Vec<oocfmt_meshio::import::PartDef>,
+    pub(crate) files: Vec<String>,
+    pub(crate) materials: Vec<Material>,
+    pub(crate) triangles: Vec<(InputTriangle, Location)>,
+    pub(crate) rejects: Vec<(DropReason, Location)>,
+    pub(crate) skipped: BTreeMap<Skipped, u64>,
+    pub(crate) warnings: Vec<String>,
+    pub(crate) fail_on_push: bool,
     /// Bytes of the importer's temporary files charged and released.
-    disk: (u64, u64),
+    pub(crate) disk: (u64, u64),
 }
 
 impl TriangleSink for Recorder {
@@ -252,13 +252,13 @@ fn scattered_obj(blocks: usize, per_block: usize) -> String {
 /// `max_vertices`.
 #[test]
 fn vertex_tables_past_their_budget_give_the_same_triangles() {
-    use oocfmt_meshio::import::obj::ObjSpill;
     use oocfmt_meshio::import::spill_table::SpillTo;
+    use oocfmt_meshio::import::spill_table::VertexSpill;
     let (d, p) = obj(&scattered_obj(4, 50_000));
     let spill_dir = tempfile::tempdir().unwrap();
     let spill = |max_vertices| ObjOptions {
         max_vertices: 10,
-        spill: Some(ObjSpill {
+        spill: Some(VertexSpill {
             to: SpillTo {
                 dir: spill_dir.path().to_path_buf(),
                 resident_bytes: 1 << 20,

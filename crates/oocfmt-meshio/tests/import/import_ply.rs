@@ -7,7 +7,7 @@
 
 use std::io::Cursor;
 
-use oocfmt_meshio::import::ply::{import, import_from, PlyOptions};
+use oocfmt_meshio::import::ply::{import, import_from, import_stream, PlyOptions};
 use oocfmt_meshio::import::{DropReason, ImportError, ImportReport, MeshSink, Skipped};
 use oocfmt_meshio::mesh::Mesh;
 
@@ -223,6 +223,94 @@ fn error(bytes: &[u8]) -> String {
 
 fn names(m: &Mesh) -> Vec<&str> {
     m.parts.iter().map(|p| p.name.as_str()).collect()
+}
+
+// ---------------------------------------------------------------- vertex tables on disk
+
+/// 200 000 scattered vertices with normals and colours, and 50 000 triangles whose corners lie
+/// far apart in the table, so that reading them goes back to pages moved to disk.
+fn scattered_ply(enc: Enc) -> Vec<u8> {
+    let count = 200_000usize;
+    let rows = (0..count)
+        .map(|i| {
+            let f = i as f64;
+            let p = [f.sin(), f.cos(), (f * 0.37).sin()].map(|c| n(c * 100.0));
+            let c = [i % 256, (i / 7) % 256, (i / 13) % 256].map(|c| n(c as f64));
+            let mut row = p.to_vec();
+            row.extend([n(0.0), n(0.6), n(0.8)]);
+            row.extend(c);
+            row
+        })
+        .collect();
+    let vertices = cube_vertices(vec![], |_| vec![]);
+    let vertices = El { rows, ..vertices };
+    let faces = El {
+        name: "face",
+        props: vec!["list uchar int vertex_indices"],
+        rows: (0..count / 4)
+            .map(|k| {
+                let a = (k * 7919) % count;
+                vec![l(
+                    &[a, (a + count / 2) % count, (a + 1) % count].map(|v| v as f64)
+                )]
+            })
+            .collect(),
+    };
+    ply(enc, &[], &[vertices, faces])
+}
+
+/// Vertex tables past their memory budget move to an unnamed temporary file and read back:
+/// the same triangles as in memory, from a file and from a stream, the file's bytes charged
+/// to the sink and released at the end, nothing left in the folder, and the spill's vertex
+/// bound in force instead of `max_vertices`.
+#[test]
+fn vertex_tables_past_their_budget_give_the_same_triangles() {
+    use crate::import_obj::Recorder;
+    use oocfmt_meshio::import::spill_table::{SpillTo, VertexSpill};
+    let spill_dir = tempfile::tempdir().unwrap();
+    let spill = |max_vertices| PlyOptions {
+        max_vertices: 10,
+        spill: Some(VertexSpill {
+            to: SpillTo {
+                dir: spill_dir.path().to_path_buf(),
+                resident_bytes: 1 << 20,
+            },
+            max_vertices,
+        }),
+        ..PlyOptions::default()
+    };
+    let bytes = scattered_ply(Enc::Le);
+    let mut kept = Recorder::default();
+    import_from(
+        Cursor::new(&bytes),
+        "m.ply",
+        &mut kept,
+        &PlyOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(kept.triangles.len(), 50_000);
+    assert_eq!(kept.disk, (0, 0));
+    let mut moved = Recorder::default();
+    import_from(Cursor::new(&bytes), "m.ply", &mut moved, &spill(1 << 20)).unwrap();
+    assert!(kept.triangles == moved.triangles, "the triangles differ");
+    // Pages of 65 536 records: 1 MiB keeps one page of positions and of normals (12 bytes a
+    // record), three of colours (5 bytes), so 3, 3 and 1 of their 4 pages move.
+    assert_eq!(moved.disk.0, (3 + 3) * 65_536 * 12 + 65_536 * 5);
+    assert_eq!(moved.disk.0, moved.disk.1);
+    let mut streamed = Recorder::default();
+    import_stream(Cursor::new(&bytes), "m.ply", &mut streamed, &spill(1 << 20)).unwrap();
+    assert!(
+        kept.triangles == streamed.triangles,
+        "the stream's triangles differ"
+    );
+    assert_eq!(std::fs::read_dir(spill_dir.path()).unwrap().count(), 0);
+    let mut refused = Recorder::default();
+    let e = import_from(Cursor::new(&bytes), "m.ply", &mut refused, &spill(100_000));
+    let msg = e.map(|()| String::new()).unwrap_or_else(|e| e.to_string());
+    assert!(
+        msg.contains("vertices") && msg.contains("limit of 100000"),
+        "{msg}"
+    );
 }
 
 // ---------------------------------------------------------------- encodings and layout

@@ -36,9 +36,6 @@ pub(super) trait Body {
     fn rewind(&mut self) -> Result<(), ImportError>;
     /// The end of a pass over every element: warns about what follows the last one.
     fn end(&mut self, sink: &mut dyn TriangleSink);
-    /// Whether the input's size is known, so that the counts in the header were checked
-    /// against it (false for a stream).
-    fn sized(&self) -> bool;
 }
 
 /// The file's bytes, little- or big-endian.
@@ -255,10 +252,6 @@ impl<R: BufRead + Seek> Body for Binary<R> {
             _ => {}
         }
     }
-
-    fn sized(&self) -> bool {
-        self.len.is_some()
-    }
 }
 
 /// The file's text after the header: values are words separated by whitespace.
@@ -446,8 +439,4 @@ impl<R: BufRead + Seek> Body for Ascii<R> {
     }
 
     fn end(&mut self, _sink: &mut dyn TriangleSink) {}
-
-    fn sized(&self) -> bool {
-        self.len.is_some()
-    }
 }

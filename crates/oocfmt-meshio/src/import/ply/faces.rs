@@ -15,9 +15,7 @@ use super::header::{CommentPart, Element, Kind};
 use super::scalar::Scalar;
 use super::vertices::Table;
 use crate::import::obj::polygon::{Outcome, Triangulator};
-use crate::import::{
-    DropReason, ImportError, InputTriangle, Location, PartDef, Skipped, TriangleSink,
-};
+use crate::import::{DropReason, ImportError, Location, PartDef, Skipped, TriangleSink};
 
 /// The colour of a material a face names but no comment describes.
 const UNDESCRIBED_MATERIAL: [f32; 3] = [0.8, 0.8, 0.8];
@@ -146,7 +144,7 @@ impl Faces {
         body: &mut B,
         element: &Element,
         plan: &FacePlan,
-        table: &Table,
+        table: &mut Table,
         sink: &mut dyn TriangleSink,
     ) -> Result<(), ImportError> {
         if plan.parts {
@@ -155,7 +153,7 @@ impl Faces {
         if plan.materials {
             self.declare_materials(sink)?;
         }
-        let vertices = table.positions.len() as f64;
+        let vertices = table.len() as f64;
         let resolve = |v: f64| (v >= 0.0 && v < vertices && v.fract() == 0.0).then_some(v as u32);
         for r in 0..element.count {
             body.record(r);
@@ -215,7 +213,7 @@ impl Faces {
     /// point or line.
     fn polygon<B: Body>(
         &mut self,
-        table: &Table,
+        table: &mut Table,
         part: Option<u32>,
         material: Option<u32>,
         body: &mut B,
@@ -233,17 +231,19 @@ impl Faces {
             }
             _ => {
                 self.polygon.clear();
-                self.polygon.extend(self.corners.iter().map(|c| {
-                    c.and_then(|i| table.positions.get(i as usize))
-                        .copied()
-                        .unwrap_or_default()
-                }));
+                for c in &self.corners {
+                    let p = match *c {
+                        Some(i) => table.position(i)?,
+                        None => None,
+                    };
+                    self.polygon.push(p.unwrap_or_default());
+                }
                 if self.triangulator.triangulate(&self.polygon) == Outcome::Fallback {
                     self.fans += 1;
                 }
                 for t in self.triangulator.triangles() {
                     let v = t.map(|i| self.corners.get(i).copied().flatten().unwrap_or(0));
-                    sink.push(triangle(table, v, part, material), body.location())?;
+                    sink.push(table.triangle(v, part, material)?, body.location())?;
                 }
             }
         }
@@ -255,7 +255,7 @@ impl Faces {
         &mut self,
         strip: &mut Strip,
         corner: Option<Option<u32>>,
-        table: &Table,
+        table: &mut Table,
         [part, material]: [Option<u32>; 2],
         body: &mut B,
         sink: &mut dyn TriangleSink,
@@ -269,7 +269,7 @@ impl Faces {
             strip.odd = !strip.odd;
             match (a, b, c) {
                 (Some(a), Some(b), Some(c)) => {
-                    sink.push(triangle(table, [a, b, c], part, material), body.location())?
+                    sink.push(table.triangle([a, b, c], part, material)?, body.location())?
                 }
                 _ => sink.reject(DropReason::IndexOutOfRange, body.location())?,
             }
@@ -403,19 +403,4 @@ impl Faces {
 /// `v` as a u32, when it is one exactly.
 fn whole_u32(v: f64) -> Option<u32> {
     (v >= 0.0 && v <= f64::from(u32::MAX) && v.fract() == 0.0).then_some(v as u32)
-}
-
-/// The triangle of vertices `v` (in range) with the table's attributes.
-fn triangle(table: &Table, v: [u32; 3], part: Option<u32>, material: Option<u32>) -> InputTriangle {
-    fn get<T: Copy + Default>(list: &[T], v: [u32; 3]) -> [T; 3] {
-        v.map(|i| list.get(i as usize).copied().unwrap_or_default())
-    }
-    InputTriangle {
-        positions: get(&table.positions, v),
-        normals: table.normals.as_deref().map(|n| get(n, v)),
-        colours: table.colours.as_deref().map(|c| get(c, v)),
-        material,
-        part,
-        hint: Some(v),
-    }
 }

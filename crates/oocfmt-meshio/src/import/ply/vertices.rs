@@ -1,12 +1,13 @@
 //! The `vertex` element: positions (`x`, `y`, `z`), normals (`nx`, `ny`, `nz`) and colours
 //! (`red`, `green`, `blue`, optional `alpha`, or their `diffuse_` names) of any scalar type;
-//! every other property is stepped over. The table is the one thing the importer holds, and
-//! its length was checked against the file's size before it is reserved (a stream's grows).
+//! every other property is stepped over. The table is the one thing the importer holds: it
+//! grows page by page as it is read, and with a spill its older pages move to disk.
 
 use super::body::Body;
 use super::header::{Element, Kind};
 use super::scalar::Scalar;
-use crate::import::{ImportError, Location, TriangleSink};
+use crate::import::spill_table::{Record, SpillTable, SpillTo};
+use crate::import::{ImportError, InputTriangle, Location, TriangleSink};
 
 /// What a vertex property is for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -76,15 +77,116 @@ impl VertexPlan {
 }
 
 /// The vertices, as the faces index them.
-#[derive(Default)]
 pub(super) struct Table {
-    pub positions: Vec<[f32; 3]>,
-    pub normals: Option<Vec<[f32; 3]>>,
-    pub colours: Option<Vec<[u8; 4]>>,
+    positions: SpillTable<[f32; 3]>,
+    normals: Option<SpillTable<[f32; 3]>>,
+    colours: Option<SpillTable<Option<[u8; 4]>>>,
+    /// Where the tables move pages (for errors), and the bytes the sink was charged for.
+    spill: Option<SpillTo>,
+    charged: u64,
+    file: String,
+}
+
+impl Table {
+    fn new(plan: &VertexPlan, spill: Option<&SpillTo>, file: &str) -> Table {
+        Table {
+            positions: SpillTable::new(spill.cloned()),
+            normals: plan.normals.then(|| SpillTable::new(spill.cloned())),
+            colours: plan.colours.then(|| SpillTable::new(spill.cloned())),
+            spill: spill.cloned(),
+            charged: 0,
+            file: file.to_string(),
+        }
+    }
+
+    /// Vertices read.
+    pub(super) fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// The position of vertex `i`, if there is one.
+    pub(super) fn position(&mut self, i: u32) -> Result<Option<[f32; 3]>, ImportError> {
+        let got = self.positions.get(i as usize);
+        got.map_err(|e| self.error(e))
+    }
+
+    /// The triangle of vertices `v` (in range) with the table's attributes.
+    pub(super) fn triangle(
+        &mut self,
+        v: [u32; 3],
+        part: Option<u32>,
+        material: Option<u32>,
+    ) -> Result<InputTriangle, ImportError> {
+        fn get<T: Record>(t: &mut SpillTable<T>, v: [u32; 3]) -> std::io::Result<[T; 3]> {
+            let mut out = [T::default(); 3];
+            for (o, i) in out.iter_mut().zip(v) {
+                *o = t.get(i as usize)?.unwrap_or_default();
+            }
+            Ok(out)
+        }
+        let got = (|| {
+            let positions = get(&mut self.positions, v)?;
+            let normals = self.normals.as_mut().map(|n| get(n, v)).transpose()?;
+            let colours = self.colours.as_mut().map(|c| get(c, v)).transpose()?;
+            Ok((positions, normals, colours))
+        })();
+        let (positions, normals, colours) = got.map_err(|e| self.error(e))?;
+        Ok(InputTriangle {
+            positions,
+            normals,
+            colours: colours.map(|c| c.map(Option::unwrap_or_default)),
+            material,
+            part,
+            hint: Some(v),
+        })
+    }
+
+    /// Appends one vertex, and tells the sink of the file bytes its pages moved to.
+    fn push(
+        &mut self,
+        p: [f32; 3],
+        n: [f32; 3],
+        c: [u8; 4],
+        sink: &mut dyn TriangleSink,
+    ) -> Result<(), ImportError> {
+        let pushed = (|| {
+            self.positions.push(p)?;
+            self.normals.as_mut().map(|t| t.push(n)).transpose()?;
+            self.colours.as_mut().map(|t| t.push(Some(c))).transpose()?;
+            let now = self.positions.file_bytes()
+                + self.normals.as_ref().map_or(0, SpillTable::file_bytes)
+                + self.colours.as_ref().map_or(0, SpillTable::file_bytes);
+            if now > self.charged {
+                sink.charge_disk(now - self.charged)?;
+                self.charged = now;
+            }
+            Ok(())
+        })();
+        pushed.map_err(|e| self.error(e))
+    }
+
+    /// Gives back the disk the tables' files were charged for (the files go with the table).
+    pub(super) fn release(&mut self, sink: &mut dyn TriangleSink) {
+        sink.release_disk(std::mem::take(&mut self.charged));
+    }
+
+    /// A failure of the tables' file, named by the input and the folder.
+    fn error(&self, source: std::io::Error) -> ImportError {
+        let dir = self.spill.as_ref().map(|s| s.dir.display().to_string());
+        ImportError::Io {
+            path: format!(
+                "{} (vertices moved to a temporary file in {})",
+                self.file,
+                dir.unwrap_or_default()
+            ),
+            source,
+        }
+    }
 }
 
 /// Reads the (entered) vertex element: positions are `origin` + the stored values, placed by
-/// the sink. With `keep` false (a bounds pass) they are only placed.
+/// the sink. With `keep` false (a bounds pass) they are only placed. Pages past `spill`'s
+/// budget move to its folder.
 pub(super) fn read<B: Body>(
     body: &mut B,
     element: &Element,
@@ -92,20 +194,9 @@ pub(super) fn read<B: Body>(
     origin: [f64; 3],
     sink: &mut dyn TriangleSink,
     keep: bool,
+    spill: Option<&SpillTo>,
 ) -> Result<Table, ImportError> {
-    // The count was checked against the vertex limit, and against the file's size where it
-    // has one; a stream's table grows from a modest start instead.
-    let n = usize::try_from(element.count).unwrap_or(0);
-    let n = if body.sized() {
-        n
-    } else {
-        n.min(STREAM_RESERVE)
-    };
-    let mut table = Table {
-        positions: reserve(n, keep).unwrap_or_default(),
-        normals: reserve(n, keep && plan.normals),
-        colours: reserve(n, keep && plan.colours),
-    };
+    let mut table = Table::new(plan, spill, &body.location().file);
     for r in 0..element.count {
         body.record(r);
         let mut p = origin;
@@ -129,24 +220,10 @@ pub(super) fn read<B: Body>(
         }
         let placed = sink.place(p);
         if keep {
-            table.positions.push(placed);
-            if let Some(normals) = table.normals.as_mut() {
-                normals.push(n);
-            }
-            if let Some(colours) = table.colours.as_mut() {
-                colours.push(c);
-            }
+            table.push(placed, n, c, sink)?;
         }
     }
     Ok(table)
-}
-
-/// Most vertices reserved up front for a stream, whose count no size vouches for.
-const STREAM_RESERVE: usize = 1 << 16;
-
-/// Room for `n` values, when they are wanted.
-fn reserve<T>(n: usize, wanted: bool) -> Option<Vec<T>> {
-    wanted.then(|| Vec::with_capacity(n))
 }
 
 /// A colour channel: integer types are 0..255, float types 0..1; out of range is clamped
