@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use oocfmt::metadata::Material;
 use oocfmt_meshio::import::obj::{import, ObjOptions};
+use oocfmt_meshio::import::spill_table::{SpillTo, VertexSpill};
 use oocfmt_meshio::import::{
     DropReason, ImportError, ImportReport, InputTriangle, Location, MeshSink, Skipped,
     TriangleSink, UNNAMED_PART,
@@ -58,6 +59,18 @@ fn error_text(r: Result<impl std::fmt::Debug, ImportError>) -> String {
     match r {
         Ok(v) => panic!("expected an error, got {v:?}"),
         Err(e) => e.to_string(),
+    }
+}
+
+/// A vertex spill into `dir` keeping 1 MiB of each table in memory, with the spill's own
+/// vertex bound `max_vertices`: what the OBJ and PLY spill tests give their importers.
+pub(crate) fn vertex_spill(dir: &Path, max_vertices: usize) -> VertexSpill {
+    VertexSpill {
+        to: SpillTo {
+            dir: dir.to_path_buf(),
+            resident_bytes: 1 << 20,
+        },
+        max_vertices,
     }
 }
 
@@ -252,19 +265,11 @@ fn scattered_obj(blocks: usize, per_block: usize) -> String {
 /// `max_vertices`.
 #[test]
 fn vertex_tables_past_their_budget_give_the_same_triangles() {
-    use oocfmt_meshio::import::spill_table::SpillTo;
-    use oocfmt_meshio::import::spill_table::VertexSpill;
     let (d, p) = obj(&scattered_obj(4, 50_000));
     let spill_dir = tempfile::tempdir().unwrap();
     let spill = |max_vertices| ObjOptions {
         max_vertices: 10,
-        spill: Some(VertexSpill {
-            to: SpillTo {
-                dir: spill_dir.path().to_path_buf(),
-                resident_bytes: 1 << 20,
-            },
-            max_vertices,
-        }),
+        spill: Some(vertex_spill(spill_dir.path(), max_vertices)),
         ..ObjOptions::default()
     };
     let kept = record(&p);

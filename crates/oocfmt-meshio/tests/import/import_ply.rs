@@ -265,18 +265,11 @@ fn scattered_ply(enc: Enc) -> Vec<u8> {
 /// bound in force instead of `max_vertices`.
 #[test]
 fn vertex_tables_past_their_budget_give_the_same_triangles() {
-    use crate::import_obj::Recorder;
-    use oocfmt_meshio::import::spill_table::{SpillTo, VertexSpill};
+    use crate::import_obj::{vertex_spill, Recorder};
     let spill_dir = tempfile::tempdir().unwrap();
     let spill = |max_vertices| PlyOptions {
         max_vertices: 10,
-        spill: Some(VertexSpill {
-            to: SpillTo {
-                dir: spill_dir.path().to_path_buf(),
-                resident_bytes: 1 << 20,
-            },
-            max_vertices,
-        }),
+        spill: Some(vertex_spill(spill_dir.path(), max_vertices)),
         ..PlyOptions::default()
     };
     let bytes = scattered_ply(Enc::Le);
