@@ -13,6 +13,11 @@ shared machine: compare ratios within one run. The machine is printed first.
     cargo build --release -p oocfmt-cli
     python3 tools/bench-lod.py --scenes mandelbulb:1e6,cad:1e6 --dir /tmp/lod
     python3 tools/bench-lod.py --scenes mandelbulb:1e7 --dir /tmp/lod --views far
+    python3 tools/bench-lod.py --files rlod,voxel --lighting shadows,ao:4 --dir /tmp/lod
+
+`--lighting` lights every image and its reference alike: `headlight` (the default), `shadows`
+(a point light with shadow rays), `ao:N` (N ambient-occlusion rays per hit) or both joined by
+`+` (`shadows+ao:4`); one table per lighting.
 """
 
 import argparse
@@ -85,6 +90,21 @@ def close_view(model, size):
     return ["--eye", ",".join(f"{x:.6g}" for x in eye), "--look-at", ",".join(f"{x:.6g}" for x in at)]
 
 
+def lighting_flags(lighting):
+    """`curve` flags of one `--lighting` entry."""
+    flags = []
+    for part in lighting.split("+"):
+        if part == "headlight":
+            continue
+        if part == "shadows":
+            flags.append("--shadows")
+        elif part.startswith("ao:") and part[3:].isdigit():
+            flags += ["--ao", part[3:]]
+        else:
+            sys.exit(f"bench-lod: unknown lighting {part!r} (headlight, shadows, ao:N)")
+    return flags
+
+
 def curve(model, a, view_args, out, extra):
     run(["curve", model, "--cache", "blocking", "--poe", a.poe, "--size", a.size,
          "--repeat", str(a.repeat), "--reference-spp", str(a.reference_spp), "--json", out]
@@ -123,7 +143,15 @@ def main():
     p.add_argument("--repeat", type=int, default=5, help="timed warm frames per PoE (median)")
     p.add_argument("--reference-spp", type=int, default=16, help="rays per pixel of the reference")
     p.add_argument("--dir", default=None, help="scratch folder, kept (default: a temporary one)")
+    p.add_argument("--files", default=",".join(f[1] for f in FILES),
+                   help="which conversions: voxel-opaque, voxel, rlod (comma-separated)")
+    p.add_argument("--lighting", default="headlight",
+                   help="comma-separated: headlight, shadows, ao:N, or joined by + (shadows+ao:4)")
     a = p.parse_args()
+    files = [f for f in FILES if f[1] in a.files.split(",")]
+    if not files:
+        sys.exit(f"bench-lod: --files names none of {', '.join(f[1] for f in FILES)}")
+    lightings = [(name, lighting_flags(name)) for name in a.lighting.split(",")]
     require_binary()
     work = a.dir or tempfile.mkdtemp(prefix="oocfmt-lod-")
     os.makedirs(work, exist_ok=True)
@@ -131,20 +159,21 @@ def main():
     for scene, size, stem in generated_scenes(a.scenes, work):
         obj = stem + ".obj"
         series = []
-        for label, suffix, flags in FILES:
+        for label, suffix, flags in files:
             path = f"{stem}-{suffix}.oocf"
             seconds, size_bytes = convert(obj, path, flags)
             took = f"{seconds:.1f} s" if seconds is not None else "(kept from an earlier run)"
             print(f"{scene} {size}: {label}: convert {took}, {size_bytes / 2**20:.1f} MiB")
             series.append((label, path))
-        for view in a.views.split(","):
-            curves = []
-            for k, (label, path) in enumerate(series):
-                args = close_view(path, a.size) if view == "close" else []
-                out = f"{path}.{view}.{k}.curve.json"
-                curves.append((label, curve(path, a, args, out, [])))
-            table(f"{scene} {size}, {view} view, {a.size}, blocking cache, error against "
-                  f"{a.reference_spp} rays per pixel on the model's pixels", curves)
+        for name, light in lightings:
+            for view in a.views.split(","):
+                curves = []
+                for label, path in series:
+                    args = close_view(path, a.size) if view == "close" else []
+                    out = f"{path}.{view}.{name.replace(':', '').replace('+', '-')}.curve.json"
+                    curves.append((label, curve(path, a, args, out, light)))
+                table(f"{scene} {size}, {view} view, {name}, {a.size}, blocking cache, error "
+                      f"against {a.reference_spp} rays per pixel on the model's pixels", curves)
 
 
 if __name__ == "__main__":

@@ -61,7 +61,8 @@ fn curve_writes_json_plot_and_sheet() {
 
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("curve.json")).unwrap()).unwrap();
-    assert_eq!(json["schema"], "oocfmt-curve/2");
+    assert_eq!(json["schema"], "oocfmt-curve/3");
+    assert_eq!(json["ao"], 0);
     assert_eq!(json["tolerance"], 8);
     assert_eq!(json["reference"]["spp"], 4);
     assert_eq!(json["reference"]["poe"], 0.0);
@@ -224,7 +225,7 @@ fn curve_plots_png_and_walks_a_path() {
 /// floor stays near the reference), and a reference cache far too small for its view only
 /// costs time: the figures are those of the default budget.
 #[test]
-fn curve_with_shadows_lights_every_image_alike() {
+fn curve_with_shadows_or_occlusion_lights_every_image_alike() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     converted_mandelbulb(d);
@@ -268,6 +269,16 @@ fn curve_with_shadows_lights_every_image_alike() {
         assert_eq!(a["error"], b["error"]);
     }
     assert_eq!(shadowed["floor"]["error"], small["floor"]["error"]);
+    // Ambient occlusion lights the reference and the images alike too.
+    let occluded = curve(&["--ao", "2"], "occluded.json");
+    assert_eq!(
+        (occluded["ao"].clone(), lit["ao"].clone()),
+        (2.into(), 0.into())
+    );
+    let rows = occluded["rows"].as_array().unwrap();
+    assert_eq!(rows[0]["error"], occluded["floor"]["error"]);
+    assert_ne!(occluded["floor"]["error"], lit["floor"]["error"]);
+    assert!(floor_rmse(&occluded) < 3.0 * floor_rmse(&lit) + 2.0);
 }
 
 #[test]
@@ -290,6 +301,8 @@ fn curve_rejects_bad_flags() {
         &["--size", "0x10"],
         &["--reference-mb", "0"],
         &["--light", "1,2,3"],
+        &["--ao", "0"],
+        &["--ao-distance", "1"],
     ] {
         let mut args = vec!["curve", "mb.oocf"];
         args.extend_from_slice(bad);

@@ -155,6 +155,8 @@ pub struct Plane {
     pub colour: [f32; 3],
     /// How far past the node's cell the plane still counts, in scene units (spec §6.4).
     pub expansion: f32,
+    /// δ: the bound on the node's triangles' distance from the plane, in scene units.
+    pub deviation: f32,
     /// α: the share of what a ray shows that is this plane (spec §6.4; 1 when unfiltered).
     pub coverage: f32,
     /// σ: the factor on the light's cosine (1 when unfiltered).
@@ -606,6 +608,7 @@ fn look(
                 offset: r.offset,
                 colour: r.colour_f32(),
                 expansion: r.expansion(radius),
+                deviation: r.deviation(radius),
                 coverage: r.coverage_f32(),
                 shade: r.shade_f32(),
             });

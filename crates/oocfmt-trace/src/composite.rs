@@ -2,9 +2,10 @@
 //! cell shows its coverage α of its own shade and lets 1 − α of what lies behind through. A
 //! primary ray composites the surfaces it meets front to back, so a thin part seen from afar
 //! covers as much of the image as it does at full detail instead of swelling into a solid
-//! block. The surfaces come from one walk of the tree ([`Tracer::trace_layers`]). Shadow and
-//! occlusion rays take LOD entries as opaque: one cell's coverage does not say whether the
-//! cells behind close the surface, and light must not leak into a closed one.
+//! block. The surfaces come from one walk of the tree ([`Tracer::trace_layers`]). Shadow rays
+//! take LOD entries as opaque: one cell's coverage does not say whether the cells behind close
+//! the surface, and light must not leak into a closed one. Occlusion rays take their
+//! transmittance ([`crate::occlusion`]): each stands for a cone, of which a cell blocks α.
 
 use crate::intersect::Ray;
 use crate::traverse::{Memo, Tracer};

@@ -8,6 +8,11 @@
 //! order), so an AO ray may end on a voxel whose radius is at most t·√(2/N): the voxel is no
 //! larger than the ray's share of the hemisphere. The metric is on whenever LOD is (`poe` > 0);
 //! at `poe` 0 every ray, AO included, sees full detail.
+//!
+//! A LOD entry covering α of its cell blocks α of the cone that stops on it, on average: an AO
+//! ray goes on behind it and lets through Π (1 − α) of the entries it crosses before an opaque
+//! surface (spec §5.1). Taken as opaque, thin parts and rough cells seen through coarse entries
+//! made LOD ambient occlusion several levels too dark (docs/benchmarks.md).
 
 use crate::cache::BlockCache;
 use crate::intersect::Ray;
@@ -76,19 +81,32 @@ impl<'a> Occlusion<'a> {
         self.rays
     }
 
-    /// The share of the rays from `from`, over the hemisphere around the unit vector `n`, that
-    /// nothing blocks within the distance; `seed` rotates the pattern (one per primary ray).
+    /// The share of the light from the hemisphere around the unit vector `n` that reaches
+    /// `from` within the distance: the mean of the rays' transmittance; `seed` rotates the
+    /// pattern (one per primary ray).
     pub fn open(&self, from: &Origin, n: [f32; 3], seed: u64, memo: &mut Memo) -> f32 {
-        let mut open = 0u32;
+        let mut open = 0.0;
         for i in 0..self.rays {
             let dir = cosine_hemisphere(n, point(i, self.rays, seed));
             let ray = Ray::new(from.spawn(dir), dir);
-            let hit = self.tracer.trace_to(&ray, self.distance, memo);
-            if !hit.is_some_and(|h| occludes(&h)) {
-                open += 1;
-            }
+            open += self.transmittance(&ray, memo);
         }
-        open as f32 / self.rays as f32
+        open / self.rays as f32
+    }
+
+    /// What `ray` lets through within the distance: 0 when it ends on an opaque surface, else
+    /// the product of 1 − α over the translucent LOD entries it crosses (1 past nothing).
+    fn transmittance(&self, ray: &Ray, memo: &Memo) -> f32 {
+        let layers = self.tracer.trace_layers(ray, self.distance, memo);
+        if layers.end.as_ref().is_some_and(occludes) {
+            return 0.0;
+        }
+        layers
+            .translucent
+            .iter()
+            .filter(|h| occludes(h))
+            .map(|h| 1.0 - h.coverage.clamp(0.0, 1.0))
+            .product()
     }
 }
 

@@ -12,7 +12,7 @@ use crate::intersect::Ray;
 use crate::light::{unit_towards, Shadows};
 use crate::occlusion::Occlusion;
 use crate::parts::{tint, PartFilter};
-use crate::rough::rough_cosine;
+use crate::rough::{lit_cosine, rough_cosine};
 use crate::spawn::{triangle_normal, Origin};
 use crate::traverse::{Hit, Memo, Surface};
 
@@ -82,7 +82,7 @@ fn attributes(hit: &Hit, materials: &[Material]) -> ([f32; 3], [f32; 3]) {
         }
         Surface::Proxy(s) => (s.colour(), s.normal()),
         Surface::Voxel { normal, colour } => (*colour, *normal),
-        Surface::Plane { normal, colour } => (*colour, *normal),
+        Surface::Plane { normal, colour, .. } => (*colour, *normal),
     }
 }
 
@@ -240,7 +240,7 @@ impl<'a> Lighting<'a> {
         match unit_towards(from.point(), s.light()) {
             // The light must be on the viewer's side of the surface.
             Some((l, _)) if dot(g, l) > 0.0 => {
-                let cos = rough_cosine(dot(n, l).min(1.0), sigma);
+                let cos = lit_cosine(n, ray.dir.map(|c| -c), l, sigma);
                 if cos > 0.0 {
                     counts.shadow += 1;
                     if s.visible(from, hit.t, memo) {

@@ -16,6 +16,11 @@
 //!   the ray then has (x − p)·g > 2r, so the ray never enters the cell again. Moving along the
 //!   normal rather than along the ray keeps the origin on the viewer's side of the surface: a
 //!   shadow ray from the inside of a closed mesh still has to cross its wall.
+//! - An R-LOD knows more: its triangles lie within its deviation δ of the plane, and p is on
+//!   the plane. The origin moves δ (plus the tolerance) along the plane's normal, so the ray
+//!   clears every triangle the plane stands for, yet still meets the walls around it that
+//!   shade it. Moving 2r would skip those too: LOD shadows came out too bright
+//!   (docs/notes/2026-12-05-shadow-ray-offsets.md).
 
 use crate::intersect::Ray;
 use crate::traverse::{Hit, Surface};
@@ -39,16 +44,16 @@ pub enum Origin {
         /// The hit's weights of a, b and c, summing to one.
         bary: [f32; 3],
     },
-    /// A voxel or proxy, met by `ray` at `t`, whose cell has enclosing radius `radius`, with
-    /// its unit normal turned towards the viewer; `scale` is the largest coordinate of the
-    /// scene's box.
+    /// A voxel, proxy or R-LOD plane, met by `ray` at `t`, with its unit normal turned towards
+    /// the viewer; `scale` is the largest coordinate of the scene's box.
     Cell {
         /// The primary ray that met the cell.
         ray: Ray,
         /// Where along `ray` it met the cell's stand-in.
         t: f32,
-        /// The cell's enclosing radius (half its diagonal), or the R-LOD's error radius.
-        radius: f32,
+        /// How far along the normal what the stand-in stands for may reach from the hit: the
+        /// cell's diameter (2r) for a voxel or proxy, the deviation δ for an R-LOD plane.
+        clearance: f32,
         /// Unit normal, on the side the primary ray came from.
         normal: [f32; 3],
         /// The largest coordinate of the scene's box: the scale of the positional tolerance.
@@ -61,21 +66,28 @@ impl Origin {
     /// scene's box. A hit without a usable normal faces back along the ray.
     pub fn of(hit: &Hit, ray: &Ray, scale: f32) -> Origin {
         let back = ray.dir.map(|c| -c);
-        let normal = match &hit.surface {
+        let diameter = 2.0 * hit.radius;
+        let (normal, clearance) = match &hit.surface {
             Surface::Triangle {
                 data,
                 triangle,
                 bary,
             } => match data.positions.get(*triangle as usize) {
                 Some(v) => return Origin::Triangle { v: *v, bary: *bary },
-                None => back,
+                None => (back, diameter),
             },
-            Surface::Proxy(s) => s.normal(),
-            Surface::Voxel { normal, .. } => *normal,
-            Surface::Plane { normal, .. } => *normal,
+            Surface::Proxy(s) => (s.normal(), diameter),
+            Surface::Voxel { normal, .. } => (*normal, diameter),
+            Surface::Plane {
+                normal, deviation, ..
+            } => (*normal, *deviation),
         };
         let len = (0..3).map(|k| normal[k] * normal[k]).sum::<f32>().sqrt();
-        let normal = if len > 0.0 && len.is_finite() {
+        let usable = len > 0.0 && len.is_finite();
+        // Without a normal the ray leaves back along the primary ray, and only the cell's
+        // diameter keeps it out of the cell.
+        let clearance = if usable { clearance } else { diameter };
+        let normal = if usable {
             let n = normal.map(|c| c / len);
             if (0..3).map(|k| n[k] * ray.dir[k]).sum::<f32>() > 0.0 {
                 n.map(|c| -c)
@@ -88,7 +100,7 @@ impl Origin {
         Origin::Cell {
             ray: *ray,
             t: hit.t,
-            radius: hit.radius,
+            clearance,
             normal,
             scale,
         }
@@ -109,10 +121,10 @@ impl Origin {
             Origin::Cell {
                 ray,
                 t,
-                radius,
+                clearance,
                 normal,
                 scale,
-            } => from_cell(ray, *t, *radius, *normal, dir, *scale),
+            } => from_cell(ray, *t, *clearance, *normal, dir, *scale),
         }
     }
 }
@@ -192,14 +204,15 @@ pub fn from_triangle(v: &[[f32; 3]; 3], bary: [f32; 3], dir: [f32; 3]) -> [f32; 
     push(p, offset)
 }
 
-/// The origin of a ray leaving in direction `dir` a voxel or proxy that `ray` hit at `t`, whose
-/// cell has enclosing radius `radius` and whose unit normal is `normal` (either side); `scale`
-/// is the largest coordinate of the scene's box, to which the traversal's tolerance is
-/// relative. A ray along the surface (no side) moves along itself.
+/// The origin of a ray leaving in direction `dir` a voxel, proxy or plane that `ray` hit at
+/// `t`, whose unit normal is `normal` (either side), when what it stands for reaches at most
+/// `clearance` from the hit along the normal; `scale` is the largest coordinate of the scene's
+/// box, to which the traversal's tolerance is relative. A ray along the surface (no side) moves
+/// along itself.
 pub fn from_cell(
     ray: &Ray,
     t: f32,
-    radius: f32,
+    clearance: f32,
     normal: [f32; 3],
     dir: [f32; 3],
     scale: f32,
@@ -207,8 +220,8 @@ pub fn from_cell(
     let p = [0, 1, 2].map(|k| ray.org[k] + t * ray.dir[k]);
     let big = |a: [f32; 3]| a.iter().fold(0f32, |m, c| m.max(c.abs()));
     let slack = CELL_SLACK * scale.max(big(ray.org)).max(big(p))
-        + gamma(4) * (big(p) + (t * big(ray.dir)).abs() + 2.0 * radius);
-    let dist = 2.0 * radius + slack;
+        + gamma(4) * (big(p) + (t * big(ray.dir)).abs() + clearance);
+    let dist = clearance + slack;
     let cos: f32 = (0..3).map(|k| normal[k] * dir[k]).sum();
     let len = (0..3).map(|k| dir[k] * dir[k]).sum::<f32>().sqrt();
     let away = if cos > 0.0 {
@@ -279,13 +292,64 @@ mod tests {
     }
 
     #[test]
-    fn a_cell_hit_starts_beyond_the_cell_diameter_on_the_side_of_the_ray() {
+    fn a_cell_hit_starts_beyond_its_clearance_on_the_side_of_the_ray() {
         let ray = Ray::new([0.0, 0.0, -5.0], [0.0, 0.0, 1.0]);
         let n = [0.0, 0.0, -1.0];
-        let o = from_cell(&ray, 4.0, 0.5, n, [0.6, 0.0, -0.8], 10.0);
+        let o = from_cell(&ray, 4.0, 1.0, n, [0.6, 0.0, -0.8], 10.0);
         assert!(o[2] < -2.0 && o[2] > -2.001);
         assert_eq!((o[0], o[1]), (0.0, 0.0));
-        let o = from_cell(&ray, 4.0, 0.5, n, [0.6, 0.0, 0.8], 10.0);
+        let o = from_cell(&ray, 4.0, 1.0, n, [0.6, 0.0, 0.8], 10.0);
         assert!(o[2] > 0.0 && o[2] < 0.001);
+    }
+
+    /// A hit at z = −1 of a ray along +z, on a surface whose cell radius is 0.5.
+    fn hit_on(surface: Surface) -> (Hit, Ray) {
+        let ray = Ray::new([0.0, 0.0, -5.0], [0.0, 0.0, 1.0]);
+        let hit = Hit {
+            t: 4.0,
+            surface,
+            radius: 0.5,
+            shade: 1.0,
+            coverage: 1.0,
+            part: None,
+        };
+        (hit, ray)
+    }
+
+    #[test]
+    fn a_voxel_clears_its_diameter_and_a_plane_its_deviation() {
+        let towards_light = [0.6, 0.0, -0.8];
+        let normal = [0.0, 0.0, 1.0];
+        let (voxel, ray) = hit_on(Surface::Voxel {
+            normal,
+            colour: [0.5; 3],
+        });
+        let o = Origin::of(&voxel, &ray, 10.0).spawn(towards_light);
+        assert!(o[2] < -2.0 && o[2] > -2.001, "{o:?}");
+        let (plane, ray) = hit_on(Surface::Plane {
+            normal,
+            colour: [0.5; 3],
+            deviation: 0.1,
+        });
+        let from = Origin::of(&plane, &ray, 10.0);
+        assert_eq!(from.point(), [0.0, 0.0, -1.0]);
+        let o = from.spawn(towards_light);
+        assert!(o[2] < -1.1 && o[2] > -1.101, "{o:?}");
+        // A flat plane (δ = 0) moves by the tolerance only.
+        let (flat, ray) = hit_on(Surface::Plane {
+            normal,
+            colour: [0.5; 3],
+            deviation: 0.0,
+        });
+        let o = Origin::of(&flat, &ray, 10.0).spawn(towards_light);
+        assert!(o[2] < -1.0 && o[2] > -1.001, "{o:?}");
+        // Without a normal the ray backs out of the whole cell.
+        let (bad, ray) = hit_on(Surface::Plane {
+            normal: [0.0; 3],
+            colour: [0.5; 3],
+            deviation: 0.1,
+        });
+        let o = Origin::of(&bad, &ray, 10.0).spawn([0.0, 0.0, -1.0]);
+        assert!(o[2] < -2.0 && o[2] > -2.001, "{o:?}");
     }
 }

@@ -67,12 +67,15 @@ pub enum Surface {
     /// A LOD node's proxy, standing in for a subtree whose block is not available: its sample
     /// for the direction nearest the ray's.
     Proxy(Sample),
-    /// An R-LOD plane: its unit normal and linear RGB colour.
+    /// An R-LOD plane: its unit normal, linear RGB colour and deviation.
     Plane {
         /// The plane's unit normal.
         normal: [f32; 3],
         /// The R-LOD's colour, linear RGB in 0..=1.
         colour: [f32; 3],
+        /// δ: the node's triangles lie within this distance of the plane (spec §6.4), so a
+        /// secondary ray that starts past it cannot meet them.
+        deviation: f32,
     },
 }
 
@@ -149,6 +152,7 @@ pub(crate) fn shown(
                 Best::Plane {
                     normal: p.normal,
                     colour: p.colour,
+                    deviation: p.deviation,
                     radius,
                     coverage: p.coverage,
                     shade: p.shade,
@@ -323,6 +327,7 @@ pub(crate) enum Best<'m> {
     Plane {
         normal: [f32; 3],
         colour: [f32; 3],
+        deviation: f32,
         radius: f32,
         coverage: f32,
         shade: f32,
@@ -847,6 +852,7 @@ impl<'m> Best<'m> {
             Best::Plane {
                 normal,
                 colour,
+                deviation,
                 radius,
                 shade,
                 part,
@@ -854,6 +860,7 @@ impl<'m> Best<'m> {
             } => Best::Plane {
                 normal,
                 colour,
+                deviation,
                 radius,
                 coverage: 1.0,
                 shade,
@@ -904,13 +911,19 @@ impl Best<'_> {
             Best::Plane {
                 normal,
                 colour,
+                deviation,
                 radius,
                 coverage: c,
                 shade: s,
                 part,
             } => {
                 (shade, coverage) = (s, c);
-                (Surface::Plane { normal, colour }, radius, word(part))
+                let surface = Surface::Plane {
+                    normal,
+                    colour,
+                    deviation,
+                };
+                (surface, radius, word(part))
             }
         };
         Some(Hit {

@@ -30,7 +30,7 @@ use crate::render::{settle, warn_missing, write_json};
 use touched::Touched;
 
 /// The JSON schema of `--json`.
-pub const SCHEMA: &str = "oocfmt-curve/2";
+pub const SCHEMA: &str = "oocfmt-curve/3";
 /// `--reference-mb` unless given: a full-detail view of 10M triangles takes 333 MiB of blocks.
 pub const DEFAULT_REFERENCE_MB: u64 = 8192;
 
@@ -88,13 +88,20 @@ pub struct Args {
     /// The point light of --shadows, X,Y,Z in world coordinates (default: as for `render`)
     #[arg(long, value_parser = args::parse_vec3, allow_hyphen_values = true, requires = "shadows")]
     pub light: Option<[f64; 3]>,
+    /// Ambient occlusion with N rays per hit (as `render --ao`), every image and the reference
+    /// alike
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(oocfmt_trace::render::MAX_SAMPLES)))]
+    pub ao: Option<u32>,
+    /// How far ambient-occlusion rays look, in world units (default: as for `render`)
+    #[arg(long, value_parser = args::parse_distance, allow_hyphen_values = true, requires = "ao")]
+    pub ao_distance: Option<f32>,
     /// Fetcher threads of the async cache (default: half the cores, at least one)
     #[arg(long, default_value_t = args::default_fetchers(), value_parser = clap::value_parser!(u64).range(1..=64))]
     pub fetchers: u64,
     /// Async cache: block levels read ahead (as for `render`)
     #[arg(long, default_value_t = oocfmt_trace::cache::asynchronous::DEFAULT_READ_AHEAD, value_parser = clap::value_parser!(u8).range(0..=16))]
     pub read_ahead: u8,
-    /// Write the figures as JSON (schema `oocfmt-curve/2`, docs/cli.md) to this file
+    /// Write the figures as JSON (schema `oocfmt-curve/3`, docs/cli.md) to this file
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Plot the RMSE on the model's pixels against frame time, one point per PoE and one series
@@ -195,6 +202,8 @@ struct Curve<'a> {
     cache_mb: u64,
     /// Lit by a point light with shadow rays (`--shadows`), else by the headlight.
     shadows: bool,
+    /// Ambient-occlusion rays per hit (`--ao`), 0 for none.
+    ao: u32,
     /// The tolerance of every `within_tolerance`.
     tolerance: u8,
     /// The reference: PoE 0, `spp` rays per pixel, blocking cache of `--reference-mb`.
@@ -274,6 +283,8 @@ pub fn run(a: &Args) -> CliResult {
     let base = RenderOptions {
         shadows: a.shadows,
         light: a.light.map(|l| session::stored_point(&scene, l)),
+        ao: a.ao.unwrap_or(0),
+        ao_distance: a.ao_distance,
         ..RenderOptions::default()
     };
     let full = render_full_detail(
@@ -326,6 +337,7 @@ pub fn run(a: &Args) -> CliResult {
         threads: rayon::current_num_threads(),
         cache_mb: a.cache_mb,
         shadows: a.shadows,
+        ao: a.ao.unwrap_or(0),
         tolerance: a.tolerance,
         reference: full.reference,
         floor: full.floor,
@@ -642,10 +654,7 @@ fn print_table(
         a.model.display(),
         cameras.len(),
         rayon::current_num_threads(),
-        match a.shadows {
-            true => "point light with shadow rays",
-            false => "headlight",
-        },
+        lighting(a),
         a.repeat,
     )?;
     outln!(
@@ -678,4 +687,16 @@ fn model_name(model: &Path) -> String {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| model.display().to_string())
+}
+
+/// How the images are lit, in words.
+fn lighting(a: &Args) -> String {
+    let light = match a.shadows {
+        true => "point light with shadow rays",
+        false => "headlight",
+    };
+    match a.ao {
+        Some(n) => format!("{light}, ambient occlusion with {n} rays per hit"),
+        None => light.to_string(),
+    }
 }

@@ -81,7 +81,11 @@ fn bits(h: &Option<Hit>) -> Option<(u32, u8, Vec<u32>, u32)> {
             normal.iter().chain(colour).map(|x| x.to_bits()).collect(),
         ),
         Surface::Proxy(s) => (2, vec![s.0]),
-        Surface::Plane { normal, colour } => (3, [f(normal), f(colour)].concat()),
+        Surface::Plane {
+            normal,
+            colour,
+            deviation,
+        } => (3, [f(normal), f(colour), f(&[*deviation])].concat()),
     };
     Some((h.t.to_bits(), kind, what, h.radius.to_bits()))
 }

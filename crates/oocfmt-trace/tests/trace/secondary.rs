@@ -9,6 +9,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use oocfmt::records::LodKinds;
+use oocfmt::WriteOptions;
+use oocfmt_build::layout::LayoutOptions;
 use oocfmt_scenes::rng::Rng;
 use oocfmt_trace::intersect::Ray;
 use oocfmt_trace::light::Shadows;
@@ -394,6 +397,65 @@ fn ambient_occlusion_rays_never_meet_the_voxel_they_leave() {
     }
     assert!(sources > 100, "{sources} primary rays ended on voxels");
     assert!(met > 100, "{met} AO rays met something");
+}
+
+/// An R-LOD's triangles lie within its deviation δ of its plane (spec §6.4): AO rays leaving a
+/// plane hit start past δ, so whatever they meet lies beyond that slab, and they still meet
+/// surfaces closer than the cell's diameter (the crease walls around the cell that a start 2r
+/// off would skip).
+#[test]
+fn occlusion_rays_leaving_a_plane_clear_its_triangles_and_meet_the_walls_around_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let layout = LayoutOptions {
+        write: WriteOptions {
+            lod: LodKinds::RLOD.filtered(),
+            ..WriteOptions::default()
+        },
+        ..LayoutOptions::default()
+    };
+    let path = common::mandelbulb_with(dir.path(), 20_000, layout);
+    let scene = Arc::new(Scene::open(&path).unwrap());
+    let cache = BlockingCache::new(Arc::clone(&scene), usize::MAX);
+    let m = scene.metadata();
+    let (lo, hi) = (m.scene.bounds_min, m.scene.bounds_max);
+    let scale = lo.iter().chain(&hi).fold(0f32, |a, &c| a.max(c.abs()));
+    let cam = Camera::framing(lo, hi, 64, 48);
+    let n = 16;
+    let ao = Tracer::new(&scene, &cache, ao_lod_c(n));
+    let reach = (0..3).map(|k| hi[k] - lo[k]).fold(0f32, f32::max) * 0.3;
+    let memo = Memo::new(&scene);
+    let (mut sources, mut met, mut close) = (0, 0, 0);
+    for (ray, hit) in hits_of(&scene, &cache, &cam, 6.0) {
+        let Surface::Plane { deviation, .. } = hit.surface else {
+            continue;
+        };
+        sources += 1;
+        let from = Origin::of(&hit, &ray, scale);
+        let p = from.point().map(f64::from);
+        let nrm = facing_normal(&hit, &ray);
+        for i in 0..n {
+            let d = cosine_hemisphere(nrm, point(i, n, hash(sources, 0, 0, Stream::Occlusion)));
+            let r = Ray::new(from.spawn(d), d);
+            let Some(h) = ao.trace_to(&r, reach, &memo) else {
+                continue;
+            };
+            met += 1;
+            let q = [0, 1, 2].map(|k| f64::from(r.org[k]) + f64::from(h.t) * f64::from(r.dir[k]));
+            let height: f64 = (0..3).map(|k| (q[k] - p[k]) * f64::from(nrm[k])).sum();
+            assert!(
+                h.t > 0.0 && height > f64::from(deviation),
+                "an AO ray met the slab of its own plane: {height} above it, δ {deviation}"
+            );
+            let dist = (0..3).map(|k| (q[k] - p[k]).powi(2)).sum::<f64>().sqrt();
+            close += usize::from(dist <= 2.0 * f64::from(hit.radius));
+        }
+    }
+    assert!(sources > 100, "{sources} primary rays ended on planes");
+    assert!(met > 100, "{met} AO rays met something");
+    assert!(
+        close > 0,
+        "no AO ray met a surface within the cell's diameter"
+    );
 }
 
 /// pbrt's re-intersection test: rays spawned from a hit on a triangle, in every direction,
