@@ -168,8 +168,8 @@ pub struct Args {
     #[arg(long, value_parser = args::parse_vec3, allow_hyphen_values = true, requires = "shadows")]
     pub light: Option<[f64; 3]>,
     /// Ambient occlusion: N rays per primary hit, cosine-weighted over the hemisphere; with
-    /// --poe > 0 a voxel ends one when its radius is at most t·√(2/N) (the ray's cone of 2π/N
-    /// steradians)
+    /// --poe > 0 a LOD entry whose radius is at most t·√(2/N) (the ray's cone of 2π/N
+    /// steradians) stands for what the ray meets there and lets 1 − its coverage through
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=i64::from(oocfmt_trace::render::MAX_SAMPLES)))]
     pub ao: Option<u32>,
     /// How far ambient-occlusion rays look, in world units (default: 0.1 × the model's box

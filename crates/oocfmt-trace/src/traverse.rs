@@ -87,8 +87,9 @@ pub struct Hit {
     /// What the ray ended on.
     pub surface: Surface,
     /// The radius of the sphere enclosing the cell of the voxel or proxy the ray ended on
-    /// (half the cell's diagonal), or the error radius of the R-LOD: secondary rays start
-    /// beyond it. 0 for a triangle.
+    /// (half the cell's diagonal), or the error radius of the R-LOD: the LOD metric's radius.
+    /// Secondary rays leave a voxel or proxy twice this far off, an R-LOD by its deviation
+    /// ([`crate::spawn`]). 0 for a triangle.
     pub radius: f32,
     /// σ, the factor on the light's cosine (spec §5.1): 1 for a triangle, a proxy and every
     /// LOD entry of an unfiltered file.
