@@ -113,6 +113,7 @@ pub fn lit_cosine(n: [f32; 3], v: [f32; 3], l: [f32; 3], sigma: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::{lit_cosine, rough_cosine};
+    use oocfmt_scenes::rng::Rng;
 
     /// The model's mean by brute force: the facets of the cone at `n` azimuths, in f64.
     fn by_facets(cos: f64, sigma: f64, n: usize) -> f64 {
@@ -217,32 +218,18 @@ mod tests {
         }
     }
 
-    /// A unit vector from three numbers in [0, 1).
-    fn unit(u: [f64; 3]) -> [f64; 3] {
-        let z = 2.0 * u[0] - 1.0;
-        let r = (1.0 - z * z).sqrt();
-        let p = std::f64::consts::TAU * u[1];
-        [r * p.cos(), r * p.sin(), z]
-    }
-
     #[test]
     fn the_two_direction_form_equals_the_facets_summed() {
-        let mut x = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = Rng(0x2545_f491_4f6c_dd1d);
         let mut worst = 0.0f64;
         for case in 0..400 {
-            let n = unit([next(), next(), next()]);
-            let mut v = unit([next(), next(), next()]);
+            let n = rng.direction();
+            let mut v = rng.direction();
             let nv: f64 = (0..3).map(|k| n[k] * v[k]).sum();
             if nv < 0.0 {
                 v = v.map(|c| -c);
             }
-            let l = unit([next(), next(), next()]);
+            let l = rng.direction();
             let sigma = [0.05, 0.3, 0.6, 0.85, 0.97][case % 5];
             let want = lit_by_facets(n, v, l, sigma, 100_000);
             let f = |a: [f64; 3]| a.map(|c| c as f32);

@@ -19,7 +19,7 @@ use oocfmt_trace::occlusion::{ao_lod_c, Occlusion};
 use oocfmt_trace::sampling::{cosine_hemisphere, hash, pixel_offset, point, Stream};
 use oocfmt_trace::shade::{encode_srgb, shade, Lighting, Secondary, AMBIENT, DEFAULT_ALBEDO};
 use oocfmt_trace::spawn::{from_triangle, Origin};
-use oocfmt_trace::traverse::{Memo, Surface, Tracer};
+use oocfmt_trace::traverse::{Hit, Memo, Surface, Tracer};
 use oocfmt_trace::{render, BlockingCache, Camera, Image, RenderOptions, Scene};
 
 /// ±10^u, u uniform in [−e, e]: magnitudes spread evenly over 2e decades.
@@ -287,12 +287,7 @@ fn a_closed_sphere_leaks_no_light() {
 }
 
 /// Primary hits of a view, traced with the tracer.
-fn hits_of(
-    scene: &Scene,
-    cache: &BlockingCache,
-    cam: &Camera,
-    poe: f32,
-) -> Vec<(Ray, oocfmt_trace::traverse::Hit)> {
+fn hits_of(scene: &Scene, cache: &BlockingCache, cam: &Camera, poe: f32) -> Vec<(Ray, Hit)> {
     let frame = cam.frame().unwrap();
     let tracer = Tracer::new(scene, cache, poe * frame.pixel_angle() as f32);
     let memo = Memo::new(scene);
@@ -308,7 +303,7 @@ fn hits_of(
     out
 }
 
-fn facing_normal(hit: &oocfmt_trace::traverse::Hit, ray: &Ray) -> [f32; 3] {
+fn facing_normal(hit: &Hit, ray: &Ray) -> [f32; 3] {
     let n = match &hit.surface {
         Surface::Triangle { data, triangle, .. } => {
             let p = data.positions[*triangle as usize];
@@ -353,11 +348,15 @@ fn ambient_occlusion_on_an_open_plane_is_never_blocked() {
     }
 }
 
-#[test]
-fn ambient_occlusion_rays_never_meet_the_voxel_they_leave() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = common::mandelbulb(dir.path(), 20_000);
-    let scene = Arc::new(Scene::open(&path).unwrap());
+/// 16 AO rays from each primary hit of a 64×48 framing view of `path` at PoE 6 that `keep`
+/// selects: `check(source, its point, its facing normal, what the AO ray met, where)` for each
+/// AO ray that meets something. The sources and the AO rays that met something.
+fn ao_from_hits(
+    path: &Path,
+    keep: impl Fn(&Hit) -> bool,
+    mut check: impl FnMut(&Hit, [f64; 3], [f32; 3], &Hit, [f64; 3]),
+) -> (u32, usize) {
+    let scene = Arc::new(Scene::open(path).unwrap());
     let cache = BlockingCache::new(Arc::clone(&scene), usize::MAX);
     let m = scene.metadata();
     let (lo, hi) = (m.scene.bounds_min, m.scene.bounds_max);
@@ -369,7 +368,7 @@ fn ambient_occlusion_rays_never_meet_the_voxel_they_leave() {
     let memo = Memo::new(&scene);
     let (mut sources, mut met) = (0, 0);
     for (ray, hit) in hits_of(&scene, &cache, &cam, 6.0) {
-        if matches!(hit.surface, Surface::Triangle { .. }) {
+        if !keep(&hit) {
             continue;
         }
         sources += 1;
@@ -383,18 +382,34 @@ fn ambient_occlusion_rays_never_meet_the_voxel_they_leave() {
                 continue;
             };
             met += 1;
-            // The hit lies on the boundary of the cell it ended in (or on a triangle); the
-            // source cell holds the source point and is 2·radius across, so a hit farther away
-            // is not in it.
+            assert!(h.t > 0.0, "an AO ray met something behind its origin");
             let q = [0, 1, 2].map(|k| f64::from(r.org[k]) + f64::from(h.t) * f64::from(r.dir[k]));
-            let dist = (0..3).map(|k| (q[k] - p[k]).powi(2)).sum::<f64>().sqrt();
-            assert!(
-                h.t > 0.0 && dist > 2.0 * f64::from(hit.radius),
-                "an AO ray met its own voxel: {dist} from the source, radius {}",
-                hit.radius
-            );
+            check(&hit, p, nrm, &h, q);
         }
     }
+    (sources, met)
+}
+
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
+}
+
+#[test]
+fn ambient_occlusion_rays_never_meet_the_voxel_they_leave() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = common::mandelbulb(dir.path(), 20_000);
+    let voxel = |h: &Hit| !matches!(h.surface, Surface::Triangle { .. });
+    let (sources, met) = ao_from_hits(&path, voxel, |source, p, _, _, q| {
+        // The hit lies on the boundary of the cell it ended in (or on a triangle); the source
+        // cell holds the source point and is 2·radius across, so a hit farther away is not in
+        // it.
+        let dist = distance(q, p);
+        assert!(
+            dist > 2.0 * f64::from(source.radius),
+            "an AO ray met its own voxel: {dist} from the source, radius {}",
+            source.radius
+        );
+    });
     assert!(sources > 100, "{sources} primary rays ended on voxels");
     assert!(met > 100, "{met} AO rays met something");
 }
@@ -414,42 +429,19 @@ fn occlusion_rays_leaving_a_plane_clear_its_triangles_and_meet_the_walls_around_
         ..LayoutOptions::default()
     };
     let path = common::mandelbulb_with(dir.path(), 20_000, layout);
-    let scene = Arc::new(Scene::open(&path).unwrap());
-    let cache = BlockingCache::new(Arc::clone(&scene), usize::MAX);
-    let m = scene.metadata();
-    let (lo, hi) = (m.scene.bounds_min, m.scene.bounds_max);
-    let scale = lo.iter().chain(&hi).fold(0f32, |a, &c| a.max(c.abs()));
-    let cam = Camera::framing(lo, hi, 64, 48);
-    let n = 16;
-    let ao = Tracer::new(&scene, &cache, ao_lod_c(n));
-    let reach = (0..3).map(|k| hi[k] - lo[k]).fold(0f32, f32::max) * 0.3;
-    let memo = Memo::new(&scene);
-    let (mut sources, mut met, mut close) = (0, 0, 0);
-    for (ray, hit) in hits_of(&scene, &cache, &cam, 6.0) {
-        let Surface::Plane { deviation, .. } = hit.surface else {
-            continue;
+    let plane = |h: &Hit| matches!(h.surface, Surface::Plane { .. });
+    let mut close = 0;
+    let (sources, met) = ao_from_hits(&path, plane, |source, p, nrm, _, q| {
+        let Surface::Plane { deviation, .. } = source.surface else {
+            unreachable!("only plane hits are kept");
         };
-        sources += 1;
-        let from = Origin::of(&hit, &ray, scale);
-        let p = from.point().map(f64::from);
-        let nrm = facing_normal(&hit, &ray);
-        for i in 0..n {
-            let d = cosine_hemisphere(nrm, point(i, n, hash(sources, 0, 0, Stream::Occlusion)));
-            let r = Ray::new(from.spawn(d), d);
-            let Some(h) = ao.trace_to(&r, reach, &memo) else {
-                continue;
-            };
-            met += 1;
-            let q = [0, 1, 2].map(|k| f64::from(r.org[k]) + f64::from(h.t) * f64::from(r.dir[k]));
-            let height: f64 = (0..3).map(|k| (q[k] - p[k]) * f64::from(nrm[k])).sum();
-            assert!(
-                h.t > 0.0 && height > f64::from(deviation),
-                "an AO ray met the slab of its own plane: {height} above it, δ {deviation}"
-            );
-            let dist = (0..3).map(|k| (q[k] - p[k]).powi(2)).sum::<f64>().sqrt();
-            close += usize::from(dist <= 2.0 * f64::from(hit.radius));
-        }
-    }
+        let height: f64 = (0..3).map(|k| (q[k] - p[k]) * f64::from(nrm[k])).sum();
+        assert!(
+            height > f64::from(deviation),
+            "an AO ray met the slab of its own plane: {height} above it, δ {deviation}"
+        );
+        close += usize::from(distance(q, p) <= 2.0 * f64::from(source.radius));
+    });
     assert!(sources > 100, "{sources} primary rays ended on planes");
     assert!(met > 100, "{met} AO rays met something");
     assert!(
