@@ -39,6 +39,7 @@ pub mod output;
 mod packet;
 pub mod parts;
 pub mod pick;
+pub mod reach;
 pub mod render;
 pub mod rough;
 pub mod sampling;

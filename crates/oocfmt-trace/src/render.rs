@@ -5,7 +5,9 @@
 //! RGB, of `spp` further rays through stratified points of the pixel
 //! ([`crate::sampling::pixel_offset`]), so the depth stays that of the centre. The centre rays
 //! of a tile are traced first, in packets of 2 × 2 pixels ([`Tracer::trace_packet`]: the same
-//! hits as ray by ray, in a fraction of the time), then each pixel is shaded in turn.
+//! hits as ray by ray, in a fraction of the time), then each pixel is shaded in turn. A tile
+//! none of whose pixels can see the scene's box ([`crate::reach`]) is background without a
+//! ray.
 
 use std::time::Instant;
 
@@ -20,6 +22,7 @@ use crate::intersect::Ray;
 use crate::light::{shoulder_light, Shadows};
 use crate::occlusion::{default_distance, Occlusion};
 use crate::parts::PartFilter;
+use crate::reach::{box_pixels, PixelRect};
 use crate::sampling::{hash, pixel_offset, Stream};
 use crate::scene::Scene;
 use crate::section::{Clip, Section};
@@ -263,6 +266,18 @@ fn primary_hits(tracer: &Tracer<'_>, rays: &[Ray], width: usize, memo: &Memo) ->
     hits
 }
 
+/// The sRGB encoding of the mean of linear RGB `colours`, summed in order.
+fn mean_srgb(colours: impl Iterator<Item = [f32; 3]>) -> [u8; 3] {
+    let (mut sum, mut n) = ([0f32; 3], 0u32);
+    for c in colours {
+        for (s, c) in sum.iter_mut().zip(c) {
+            *s += c;
+        }
+        n += 1;
+    }
+    sum.map(|s| encode_srgb(s / n.max(1) as f32))
+}
+
 /// Renders one frame of `scene` through `cache`. `camera` is in stored coordinates. The
 /// frame shows the parts the scene's filter shows ([`Scene::set_parts`], read once here), cut
 /// by the scene's section plane ([`Scene::set_section`], read once here): primary rays see
@@ -316,6 +331,11 @@ struct FrameJob<'a> {
     tiles_x: u32,
     /// The sRGB colour of a centre ray that hits nothing, with one ray per pixel.
     background: [u8; 3],
+    /// The sRGB colour of a pixel all of whose rays hit nothing: `background`, or with
+    /// `spp` > 1 the mean of `spp` background colours as [`FrameJob::stratified`] takes it.
+    missed: [u8; 3],
+    /// The pixels whose rays may meet the scene's box; the others miss ([`box_pixels`]).
+    reach: PixelRect,
     /// The section plane clipping the primary rays, in stored coordinates.
     section: Option<Section>,
 }
@@ -356,15 +376,30 @@ impl<'a> FrameJob<'a> {
                 .unwrap_or_else(|| default_distance(bounds.0, bounds.1));
             Occlusion::new(scene, cache, opts.ao, distance, opts.poe > 0.0).with_parts(parts)
         });
+        let tracer = Tracer::new(scene, cache, lod_c as f32).with_parts(parts);
+        // The box as the tracer's root test pads it for these rays (all start at the eye).
+        let pad = f64::from(tracer.ray_eps(&frame.ray(0, 0)));
+        let reach = box_pixels(
+            frame,
+            tracer.lo.map(|c| f64::from(c) - pad),
+            tracer.hi.map(|c| f64::from(c) + pad),
+        );
+        let missed = if opts.spp > 1 {
+            mean_srgb((0..opts.spp).map(|_| opts.background))
+        } else {
+            opts.background.map(encode_srgb)
+        };
         FrameJob {
             frame,
             opts,
             cache,
-            tracer: Tracer::new(scene, cache, lod_c as f32).with_parts(parts),
+            tracer,
             lighting: Lighting::new(&m.materials, shadows, occlusion, bounds).with_parts(parts),
             lod_c,
             tiles_x: frame.width().div_ceil(TILE),
             background: opts.background.map(encode_srgb),
+            missed,
+            reach,
             section: None,
         }
     }
@@ -386,9 +421,12 @@ impl<'a> FrameJob<'a> {
     /// Traces and shades one tile: its centre rays first, in packets ([`primary_hits`]), then
     /// each pixel in row-major order.
     fn tile(&self, tile: u32, memo: &mut Memo) -> TileOut {
-        memo.clear();
         let (x0, y0, x1, y1) = self.tile_rect(tile);
         let n = ((x1 - x0) * (y1 - y0)) as usize;
+        if !self.reach.overlaps((x0, y0, x1, y1)) {
+            return self.missed_tile(tile, n);
+        }
+        memo.clear();
         let mut out = TileOut {
             tile,
             rgb: Vec::with_capacity(n),
@@ -440,6 +478,23 @@ impl<'a> FrameJob<'a> {
         memo.flush(self.cache);
         out.visited = memo.take_visited();
         out
+    }
+
+    /// Tile `tile` of `n` pixels, none of whose rays can meet the scene's box: what tracing
+    /// them would give, without a ray.
+    fn missed_tile(&self, tile: u32, n: usize) -> TileOut {
+        TileOut {
+            tile,
+            rgb: vec![self.missed; n],
+            depth: vec![f32::INFINITY; n],
+            model: vec![false; n],
+            endings: Endings {
+                miss: n as u64,
+                ..Endings::default()
+            },
+            secondary: Secondary::default(),
+            visited: 0,
+        }
     }
 
     /// The shading: the sRGB colour of pixel (x, y), whose centre ray (as traced, with the
@@ -509,27 +564,24 @@ impl<'a> FrameJob<'a> {
         secondary: &mut Secondary,
     ) -> ([u8; 3], bool) {
         let spp = self.opts.spp;
-        let mut sum = [0f32; 3];
         let mut any = false;
-        for k in 0..spp {
+        let colours = (0..spp).map(|k| {
             let [ox, oy] = pixel_offset(x, y, k, spp);
             let ray = self.frame.ray_at(f64::from(x) + ox, f64::from(y) + oy);
             let clip = self.section.map_or(Clip::Whole, |s| s.clip(&ray));
             let traced = clip.ray(&ray);
             let hit = traced.and_then(|r| Some((self.tracer.trace(&r, memo)?, r)));
-            let c = match hit.filter(|(h, _)| h.t <= clip.limit()) {
+            match hit.filter(|(h, _)| h.t <= clip.limit()) {
                 Some((hit, ray)) => {
                     any = true;
                     let seed = hash(x, y, k, Stream::Occlusion);
                     self.shaded(&hit, (&ray, clip.limit()), seed, memo, secondary)
                 }
                 None => self.opts.background,
-            };
-            for (s, c) in sum.iter_mut().zip(c) {
-                *s += c;
             }
-        }
-        (sum.map(|s| encode_srgb(s / spp as f32)), any)
+        });
+        let colour = mean_srgb(colours);
+        (colour, any)
     }
 
     /// Places the finished tiles' pixels in one image and adds up their figures.
