@@ -266,15 +266,16 @@ fn primary_hits(tracer: &Tracer<'_>, rays: &[Ray], width: usize, memo: &Memo) ->
     hits
 }
 
-/// The sRGB encoding of the mean of linear RGB `colours`, summed in order.
-fn mean_srgb(colours: impl Iterator<Item = [f32; 3]>) -> [u8; 3] {
-    let (mut sum, mut n) = ([0f32; 3], 0u32);
-    for c in colours {
-        for (s, c) in sum.iter_mut().zip(c) {
-            *s += c;
-        }
-        n += 1;
+/// Adds linear RGB `c` to `sum`.
+#[inline]
+fn add_to(sum: &mut [f32; 3], c: [f32; 3]) {
+    for (s, c) in sum.iter_mut().zip(c) {
+        *s += c;
     }
+}
+
+/// The sRGB encoding of the mean of `n` ≥ 1 linear RGB colours summing to `sum`.
+fn mean_srgb(sum: [f32; 3], n: u32) -> [u8; 3] {
     sum.map(|s| encode_srgb(s / n.max(1) as f32))
 }
 
@@ -385,7 +386,11 @@ impl<'a> FrameJob<'a> {
             tracer.hi.map(|c| f64::from(c) + pad),
         );
         let missed = if opts.spp > 1 {
-            mean_srgb((0..opts.spp).map(|_| opts.background))
+            let mut sum = [0f32; 3];
+            for _ in 0..opts.spp {
+                add_to(&mut sum, opts.background);
+            }
+            mean_srgb(sum, opts.spp)
         } else {
             opts.background.map(encode_srgb)
         };
@@ -482,6 +487,8 @@ impl<'a> FrameJob<'a> {
 
     /// Tile `tile` of `n` pixels, none of whose rays can meet the scene's box: what tracing
     /// them would give, without a ray.
+    #[cold]
+    #[inline(never)]
     fn missed_tile(&self, tile: u32, n: usize) -> TileOut {
         TileOut {
             tile,
@@ -564,24 +571,25 @@ impl<'a> FrameJob<'a> {
         secondary: &mut Secondary,
     ) -> ([u8; 3], bool) {
         let spp = self.opts.spp;
+        let mut sum = [0f32; 3];
         let mut any = false;
-        let colours = (0..spp).map(|k| {
+        for k in 0..spp {
             let [ox, oy] = pixel_offset(x, y, k, spp);
             let ray = self.frame.ray_at(f64::from(x) + ox, f64::from(y) + oy);
             let clip = self.section.map_or(Clip::Whole, |s| s.clip(&ray));
             let traced = clip.ray(&ray);
             let hit = traced.and_then(|r| Some((self.tracer.trace(&r, memo)?, r)));
-            match hit.filter(|(h, _)| h.t <= clip.limit()) {
+            let c = match hit.filter(|(h, _)| h.t <= clip.limit()) {
                 Some((hit, ray)) => {
                     any = true;
                     let seed = hash(x, y, k, Stream::Occlusion);
                     self.shaded(&hit, (&ray, clip.limit()), seed, memo, secondary)
                 }
                 None => self.opts.background,
-            }
-        });
-        let colour = mean_srgb(colours);
-        (colour, any)
+            };
+            add_to(&mut sum, c);
+        }
+        (mean_srgb(sum, spp), any)
     }
 
     /// Places the finished tiles' pixels in one image and adds up their figures.

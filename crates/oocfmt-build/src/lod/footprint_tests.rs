@@ -153,6 +153,44 @@ fn an_r_lod_over_a_comb_covers_half_its_plane() {
     assert_eq!((r.coverage, r.shade), (128, 255));
 }
 
+/// Closed plates, `strips` of them across the unit square and 2·`half` thick: the comb's
+/// strips as boxes, each of twelve triangles wound outwards.
+fn closed_comb(strips: u32, half: f32) -> Mesh {
+    let (mut positions, mut triangles) = (Vec::new(), Vec::new());
+    let w = 1.0 / strips as f32;
+    for s in 0..strips {
+        let x0 = s as f32 * w;
+        let (lo, hi) = ([x0, 0.0, -half], [x0 + w / 2.0, 1.0, half]);
+        let b = positions.len() as u32;
+        // Corner k has x from bit 0, y from bit 1, z from bit 2.
+        positions
+            .extend((0..8).map(|k| [0, 1, 2].map(|a| if k >> a & 1 == 1 { hi[a] } else { lo[a] })));
+        // Each face's corners counter-clockwise seen from outside.
+        for q in [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ] {
+            triangles.push([b + q[0], b + q[1], b + q[2]]);
+            triangles.push([b + q[0], b + q[2], b + q[3]]);
+        }
+    }
+    Mesh::new(positions, triangles)
+}
+
+#[test]
+fn an_r_lod_over_closed_plates_counts_their_shadow_once() {
+    // Both faces of a plate project onto the plane through it; the plates cover half of it.
+    let mesh = closed_comb(16, 1e-3);
+    let fit = rlod::fit(&mesh, &all_triangles(&mesh), unit_cell());
+    assert!((fit.section - 1.0).abs() < 1e-6, "{}", fit.section);
+    assert!((fit.coverage() - 0.5).abs() < 1e-3, "{}", fit.coverage());
+    assert!((fit.shade() - 1.0).abs() < 1e-3, "{}", fit.shade());
+}
+
 #[test]
 fn an_r_lod_over_a_rough_surface_keeps_its_mean_shade() {
     let (a, k) = (0.05, 2.0);

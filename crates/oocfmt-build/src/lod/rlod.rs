@@ -37,6 +37,9 @@ pub struct PlaneFit {
     /// Σ over the clipped polygons measured so far ([`Deviation`]) of their area projected on
     /// the plane, |A · n|.
     pub projected: f64,
+    /// Σ of the same, signed: A · n, the area facing along the normal less the area facing
+    /// against it.
+    pub facing: f64,
     /// Σ of their projected areas times their cosine to the normal, (A · n)² / |A|.
     pub cosine_weighted: f64,
     /// The part with the largest clipped area (ties: the lowest id); 0 when the triangles
@@ -264,6 +267,7 @@ impl PlaneMoments {
             area: m.area,
             section: section_area(&self.frame, normal, point),
             projected: 0.0,
+            facing: 0.0,
             cosine_weighted: 0.0,
             part: self.largest_part(),
         };
@@ -313,6 +317,7 @@ impl Deviation {
             // This piece's own sums: the plane may carry those of pieces measured before.
             plane: PlaneFit {
                 projected: 0.0,
+                facing: 0.0,
                 cosine_weighted: 0.0,
                 ..*plane
             },
@@ -339,6 +344,7 @@ impl Deviation {
         let area = area_vector(&self.scratch.out);
         let (along, len) = (dot(area, p.normal), dot(area, area).sqrt());
         p.projected += along.abs();
+        p.facing += along;
         if len > 0.0 {
             p.cosine_weighted += along * along / len;
         }
@@ -357,14 +363,18 @@ impl PlaneFit {
         self.deviation = self.deviation.max(piece.deviation);
         self.stored_deviation = self.stored_deviation.max(piece.stored_deviation);
         self.projected += piece.projected;
+        self.facing += piece.facing;
         self.cosine_weighted += piece.cosine_weighted;
     }
 
     /// The share of the plane's part in the cell the triangles cover, seen along the normal,
-    /// at most 1 (1 when the plane has no part in the cell to cover).
+    /// at most 1 (1 when the plane has no part in the cell to cover): the larger of the areas
+    /// facing along and against the normal, (|A · n| summed + |Σ A · n|) / 2, so that a closed
+    /// part (a pipe, a plate with two faces), whose two sides both project onto the plane,
+    /// counts its shadow once and not twice.
     pub fn coverage(&self) -> f64 {
         if self.section > 0.0 {
-            (self.projected / self.section).min(1.0)
+            ((self.projected + self.facing.abs()) / 2.0 / self.section).min(1.0)
         } else {
             1.0
         }

@@ -20,7 +20,7 @@ use oocfmt_meshio::mesh::Bounds;
 /// The first eight bytes of a subset file.
 pub const MAGIC: [u8; 8] = *b"OOCFSUB\0";
 /// The layout version this build writes and reads.
-pub const VERSION: u16 = 1;
+pub const VERSION: u16 = 2;
 /// Bytes of the header; the blocks start here.
 pub const HEADER_LEN: u64 = 64;
 

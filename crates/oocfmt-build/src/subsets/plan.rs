@@ -153,6 +153,7 @@ impl PlanPlane {
             area: b[9],
             section: b[10],
             projected: 0.0,
+            facing: 0.0,
             cosine_weighted: 0.0,
             part: self.part,
         }
