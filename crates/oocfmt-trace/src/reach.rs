@@ -28,9 +28,9 @@ impl PixelRect {
 }
 
 /// The pixels of `frame` whose rays, through any point of the pixel, may meet the box
-/// [lo, hi]; every other pixel's rays miss it. The whole image when a corner of the box does
-/// not lie in front of the eye (the eye inside the box, or beside it), where a projection
-/// cannot bound the rays.
+/// [lo, hi]; every other pixel's rays miss it. No pixel when the whole box lies behind the eye's
+/// plane (every ray goes forward); the whole image when only part of it does (the eye inside
+/// the box, or beside it), where a projection cannot bound the rays.
 ///
 /// The rectangle is widened by two pixels, and by far more than the angle a ray's f32
 /// direction is rounded by (1e-6 on the image plane at distance 1, growing towards the edge
@@ -45,11 +45,28 @@ pub fn box_pixels(frame: &Frame, lo: [f64; 3], hi: [f64; 3]) -> PixelRect {
         y1: h,
     };
     let (forward, right, up) = frame.basis();
+    let corners = (0..8).map(|c: u32| {
+        let p = [0, 1, 2].map(|k| if c >> k & 1 == 1 { hi[k] } else { lo[k] });
+        sub(p, frame.eye())
+    });
+    // A ray's points ahead of the eye have dot(v, forward) > 0: none meets a box behind, by
+    // more than the rounding of the eye to f32 (the rays' origin).
+    let eye = frame.eye();
+    let rounding = 1e-6 * dot(eye, eye).sqrt();
+    if corners
+        .clone()
+        .all(|v| dot(v, forward) < -rounding - 1e-6 * dot(v, v).sqrt())
+    {
+        return PixelRect {
+            x0: 0,
+            y0: 0,
+            x1: 0,
+            y1: 0,
+        };
+    }
     // The image plane at distance 1: s = (sx, sy) of the corners, as `Frame::ray_at` spans it.
     let (mut s_lo, mut s_hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for corner in 0..8 {
-        let p = [0, 1, 2].map(|k| if corner >> k & 1 == 1 { hi[k] } else { lo[k] });
-        let v = sub(p, frame.eye());
+    for v in corners {
         let z = dot(v, forward);
         // At or behind the eye's plane, or NaN.
         if z.is_nan() || z <= 0.0 {
@@ -168,6 +185,16 @@ mod tests {
         assert_eq!(box_pixels(&f, lo, hi), whole);
         let f = frame([0.0, 0.0, 1.5], [5.0, 0.0, 1.5], 45.0, (40, 30));
         assert_eq!(box_pixels(&f, lo, hi), whole);
+    }
+
+    #[test]
+    fn a_box_behind_the_eye_reaches_no_pixel() {
+        let (lo, hi) = ([-1.0; 3], [1.0; 3]);
+        for fov in [45.0, 170.0] {
+            let f = frame([0.0, 0.0, 1.5], [0.2, 0.1, 9.0], fov, (40, 30));
+            let r = check(&f, lo, hi);
+            assert!(!r.overlaps((0, 0, 40, 30)), "{r:?}");
+        }
     }
 
     #[test]

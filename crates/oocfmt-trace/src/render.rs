@@ -487,8 +487,6 @@ impl<'a> FrameJob<'a> {
 
     /// Tile `tile` of `n` pixels, none of whose rays can meet the scene's box: what tracing
     /// them would give, without a ray.
-    #[cold]
-    #[inline(never)]
     fn missed_tile(&self, tile: u32, n: usize) -> TileOut {
         TileOut {
             tile,
