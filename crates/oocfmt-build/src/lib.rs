@@ -37,6 +37,8 @@ pub mod raycast;
 pub mod report;
 mod spill_dir;
 pub mod subsets;
+#[cfg(test)]
+mod test_mesh;
 
 pub use convert::{convert, ConvertError, ConvertOptions};
 pub use interrupt::Interrupt;

@@ -45,13 +45,13 @@ pub fn box_pixels(frame: &Frame, lo: [f64; 3], hi: [f64; 3]) -> PixelRect {
         y1: h,
     };
     let (forward, right, up) = frame.basis();
+    let eye = frame.eye();
     let corners = (0..8).map(|c: u32| {
         let p = [0, 1, 2].map(|k| if c >> k & 1 == 1 { hi[k] } else { lo[k] });
-        sub(p, frame.eye())
+        sub(p, eye)
     });
     // A ray's points ahead of the eye have dot(v, forward) > 0: none meets a box behind, by
     // more than the rounding of the eye to f32 (the rays' origin).
-    let eye = frame.eye();
     let rounding = 1e-6 * dot(eye, eye).sqrt();
     if corners
         .clone()

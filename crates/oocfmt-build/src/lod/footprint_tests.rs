@@ -5,6 +5,7 @@ use oocfmt::records::Voxel;
 
 use super::*;
 use crate::kdtree::{build, KdBuildOptions};
+use crate::test_mesh::closed_box;
 
 const TAU: f64 = std::f64::consts::TAU;
 
@@ -154,31 +155,20 @@ fn an_r_lod_over_a_comb_covers_half_its_plane() {
 }
 
 /// Closed plates, `strips` of them across the unit square and 2·`half` thick: the comb's
-/// strips as boxes, each of twelve triangles wound outwards.
+/// strips as boxes.
 fn closed_comb(strips: u32, half: f32) -> Mesh {
-    let (mut positions, mut triangles) = (Vec::new(), Vec::new());
+    let mut mesh = Mesh::default();
     let w = 1.0 / strips as f32;
     for s in 0..strips {
         let x0 = s as f32 * w;
-        let (lo, hi) = ([x0, 0.0, -half], [x0 + w / 2.0, 1.0, half]);
-        let b = positions.len() as u32;
-        // Corner k has x from bit 0, y from bit 1, z from bit 2.
-        positions
-            .extend((0..8).map(|k| [0, 1, 2].map(|a| if k >> a & 1 == 1 { hi[a] } else { lo[a] })));
-        // Each face's corners counter-clockwise seen from outside.
-        for q in [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ] {
-            triangles.push([b + q[0], b + q[1], b + q[2]]);
-            triangles.push([b + q[0], b + q[2], b + q[3]]);
-        }
+        closed_box(
+            &mut mesh,
+            [x0, 0.0, -half],
+            [x0 + w / 2.0, 1.0, half],
+            [0; 4],
+        );
     }
-    Mesh::new(positions, triangles)
+    mesh
 }
 
 #[test]

@@ -9,33 +9,8 @@ use crate::kdtree::{build_cell, KdBuildOptions, KdTree, NodeId};
 use crate::layout::parts::part_of;
 use crate::lod::{sample_cell, shade, DEFAULT_VOXEL_THRESHOLD, DIAGONAL_RAYS_MAX, FACE_RAYS_MAX};
 use crate::raycast::intersect_triangle;
+use crate::test_mesh::closed_box;
 use oocfmt_meshio::mesh::{Bounds, Mesh};
-
-/// A closed box of 12 triangles with outward normals, in one vertex colour.
-fn closed_box(mesh: &mut Mesh, lo: [f32; 3], size: f32, colour: [u8; 4]) {
-    let hi = lo.map(|c| c + size);
-    let corner = |k: usize| -> [f32; 3] {
-        std::array::from_fn(|a| if k >> a & 1 == 1 { hi[a] } else { lo[a] })
-    };
-    let base = mesh.positions.len() as u32;
-    mesh.positions.extend((0..8).map(corner));
-    if let Some(c) = mesh.colours.as_mut() {
-        c.extend([colour; 8]);
-    }
-    // Quads as corner indices (bit 0 x, bit 1 y, bit 2 z), counter-clockwise from outside.
-    for q in [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ] {
-        let v = q.map(|k| base + k);
-        mesh.triangles.push([v[0], v[1], v[2]]);
-        mesh.triangles.push([v[0], v[2], v[3]]);
-    }
-}
 
 /// A green hull (part 1) with yellow cargo (part 0) inside.
 fn hull_with_cargo() -> Mesh {
@@ -43,8 +18,13 @@ fn hull_with_cargo() -> Mesh {
         colours: Some(Vec::new()),
         ..Mesh::default()
     };
-    closed_box(&mut mesh, [0.0; 3], 4.0, [0, 255, 0, 255]);
-    closed_box(&mut mesh, [1.0, 1.5, 1.2], 1.5, [255, 255, 0, 255]);
+    closed_box(&mut mesh, [0.0; 3], [4.0; 3], [0, 255, 0, 255]);
+    closed_box(
+        &mut mesh,
+        [1.0, 1.5, 1.2],
+        [2.5, 3.0, 2.7],
+        [255, 255, 0, 255],
+    );
     mesh.part_ids = Some([[1; 12], [0; 12]].concat());
     mesh.parts = vec![
         oocfmt_meshio::mesh::PartDef::new("cargo", None),
