@@ -15,6 +15,9 @@ shared machine: compare ratios within one run. The machine is printed first.
     python3 tools/bench-lod.py --scenes mandelbulb:1e7 --dir /tmp/lod --views far
     python3 tools/bench-lod.py --files rlod,voxel --lighting shadows,ao:4 --dir /tmp/lod
 
+`--shown translucent,opaque` renders each pre-filtered file both ways: its partly covering
+LOD entries composited over what lies behind (the default) and with `--opaque-lod`.
+
 `--lighting` lights every image and its reference alike: `headlight` (the default), `shadows`
 (a point light with shadow rays), `ao:N` (N ambient-occlusion rays per hit) or both joined by
 `+` (`shadows+ao:4`); one table per lighting.
@@ -145,6 +148,9 @@ def main():
     p.add_argument("--dir", default=None, help="scratch folder, kept (default: a temporary one)")
     p.add_argument("--files", default=",".join(f[1] for f in FILES),
                    help="which conversions: voxel-opaque, voxel, rlod (comma-separated)")
+    p.add_argument("--shown", default="translucent",
+                   help="how LOD entries are shown, comma-separated: translucent (the default), "
+                        "opaque (--opaque-lod); files without coverage are shown once")
     p.add_argument("--lighting", default="headlight",
                    help="comma-separated: headlight, shadows, ao:N, or joined by + (shadows+ao:4)")
     a = p.parse_args()
@@ -152,6 +158,9 @@ def main():
     if not files:
         sys.exit(f"bench-lod: --files names none of {', '.join(f[1] for f in FILES)}")
     lightings = [(name, lighting_flags(name)) for name in a.lighting.split(",")]
+    shown = a.shown.split(",")
+    if not shown or any(m not in ("translucent", "opaque") for m in shown):
+        sys.exit("bench-lod: --shown takes translucent, opaque or both")
     require_binary()
     work = a.dir or tempfile.mkdtemp(prefix="oocfmt-lod-")
     os.makedirs(work, exist_ok=True)
@@ -164,14 +173,18 @@ def main():
             seconds, size_bytes = convert(obj, path, flags)
             took = f"{seconds:.1f} s" if seconds is not None else "(kept from an earlier run)"
             print(f"{scene} {size}: {label}: convert {took}, {size_bytes / 2**20:.1f} MiB")
-            series.append((label, path))
+            for mode in shown if suffix != "voxel-opaque" else shown[:1]:
+                opaque = mode == "opaque" and suffix != "voxel-opaque"
+                series.append((label + (", --opaque-lod" if opaque else ""), path,
+                               ["--opaque-lod"] if opaque else []))
         for name, light in lightings:
             for view in a.views.split(","):
                 curves = []
-                for label, path in series:
+                for label, path, shown_flags in series:
                     args = close_view(path, a.size) if view == "close" else []
-                    out = f"{path}.{view}.{name.replace(':', '').replace('+', '-')}.curve.json"
-                    curves.append((label, curve(path, a, args, out, light)))
+                    tag = name.replace(':', '').replace('+', '-') + "".join(shown_flags).replace("-", "")
+                    out = f"{path}.{view}.{tag}.curve.json"
+                    curves.append((label, curve(path, a, args, out, light + shown_flags)))
                 table(f"{scene} {size}, {view} view, {name}, {a.size}, blocking cache, error "
                       f"against {a.reference_spp} rays per pixel on the model's pixels", curves)
 

@@ -9,8 +9,8 @@ pixels), what perfect pre-filtering would give:
 - the truth averaged over grid-aligned p-pixel blocks, each block shown flat (what records of
   p pixels that are exact footprint means give, sampled once per pixel);
 
-and renders the real images (full detail at 1 ray per pixel, each --poe, opaque and
---translucent) to set them beside the bounds, split into the pixels the model covers fully
+and renders the real images (full detail at 1 ray per pixel, each --poe, translucent LOD
+entries (the default) and --opaque-lod) to set them beside the bounds, split into the pixels the model covers fully
 (interior) and those it covers partly (silhouettes), with the share of the squared error each
 holds. --crops X,Y,W,H writes error maps of that region (red too bright, blue too dark, 4x gain).
 
@@ -145,7 +145,7 @@ def main():
         row(f"truth, flat {width}-px blocks", img, model_px | hit_b)
     series = [("full detail, 1 ray/pixel (the floor)", ["--poe", "0"])]
     for p in a.poe.split(","):
-        series += [(f"PoE {p}", ["--poe", p]), (f"PoE {p} --translucent", ["--poe", p, "--translucent"])]
+        series += [(f"PoE {p}", ["--poe", p]), (f"PoE {p} --opaque-lod", ["--poe", p, "--opaque-lod"])]
     for name, args in series:
         stem = name.split(",")[0].replace(" ", "-").replace("--", "")
         img = render(a.model, a.work, stem, a.size, view + args)

@@ -176,11 +176,11 @@ pub struct Args {
     /// diagonal)
     #[arg(long, value_parser = args::parse_distance, allow_hyphen_values = true, requires = "ao")]
     pub ao_distance: Option<f32>,
-    /// Show LOD entries that cover part of their cell (pre-filtered files, spec §5.1) as
-    /// translucent, composited over what lies behind: thin parts keep their size, at a cost in
-    /// time that exceeds choosing a lower --poe for the same error on the measured scenes
+    /// Show every LOD entry opaque, coverage aside (spec §5.1): a little faster on rough
+    /// surfaces, while thin parts swell to their cells. By default an entry that covers part
+    /// of its cell (pre-filtered files) is translucent, composited over what lies behind
     #[arg(long)]
-    pub translucent: bool,
+    pub opaque_lod: bool,
     /// Hide the parts whose name matches GLOB (a GLOB with `/` matches paths of names from the
     /// top: `assembly-3/bolt-*`), with everything under them; repeatable. `*` and `?` match
     /// within a name, `**` across `/`. A GLOB that matches no part is a usage error
@@ -248,7 +248,7 @@ pub fn run(a: &Args) -> CliResult {
         light: a.light.map(|l| session::stored_point(&scene, l)),
         ao: a.ao.unwrap_or(0),
         ao_distance: a.ao_distance,
-        translucent: a.translucent,
+        translucent: !a.opaque_lod,
         ..RenderOptions::default()
     };
     match (path_cameras, &a.output) {

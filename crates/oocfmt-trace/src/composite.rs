@@ -2,33 +2,32 @@
 //! cell shows its coverage α of its own shade and lets 1 − α of what lies behind through. A
 //! primary ray composites the surfaces it meets front to back, so a thin part seen from afar
 //! covers as much of the image as it does at full detail instead of swelling into a solid
-//! block. The surfaces come from one walk of the tree ([`Tracer::trace_layers`]). Shadow rays
+//! block. The surfaces come from one walk of the tree ([`Tracer::trace_layers`], or
+//! [`Tracer::trace_packet_layers`] for a packet of primary rays). Shadow rays
 //! take LOD entries as opaque: one cell's coverage does not say whether the cells behind close
 //! the surface, and light must not leak into a closed one. Occlusion rays take their
 //! transmittance ([`crate::occlusion`]): each stands for a cone, of which a cell blocks α.
 
-use crate::intersect::Ray;
-use crate::traverse::{Memo, Tracer};
+#[cfg(doc)]
+use crate::traverse::Tracer;
+use crate::traverse::{Hit, Memo};
 
 pub use crate::traverse::{Layers, MAX_LAYERS, MIN_TRANSMITTANCE};
 
-/// The colour `ray` shows: `shade(hit)` (the linear RGB of one surface) of the translucent
-/// surfaces it meets, front to back, each weighted by its coverage and what the ones before
-/// let through, over the opaque surface it ends on or, where it leaves the scene,
-/// `background`. Surfaces at `t_max` or beyond are not met (a section plane's end of the
-/// ray; infinity for the whole ray).
-pub fn composite(
-    tracer: &Tracer<'_>,
-    ray: &Ray,
-    t_max: f32,
-    memo: &mut Memo,
+/// The colour of a ray that met the translucent surfaces `front`, nearest first, and then
+/// `end` (None: it left the scene, showing `background`): each surface's `shade` (its linear
+/// RGB) weighted by its coverage and by what the ones before it let through, over what `end`
+/// shows. The surfaces come from [`Tracer::trace_layers`] or [`Tracer::trace_packet_layers`].
+pub fn blend(
+    front: &[Hit],
+    end: Option<&Hit>,
     background: [f32; 3],
-    shade: &mut dyn FnMut(&crate::traverse::Hit, &mut Memo) -> [f32; 3],
+    memo: &mut Memo,
+    shade: &mut dyn FnMut(&Hit, &mut Memo) -> [f32; 3],
 ) -> [f32; 3] {
-    let layers = tracer.trace_layers(ray, t_max, memo);
     let mut colour = [0f32; 3];
     let mut through = 1f32;
-    for hit in &layers.translucent {
+    for hit in front {
         let alpha = hit.coverage.clamp(0.0, 1.0);
         if alpha > 0.0 {
             let c = shade(hit, memo);
@@ -38,7 +37,7 @@ pub fn composite(
         }
         through *= 1.0 - alpha;
     }
-    let behind = match &layers.end {
+    let behind = match end {
         Some(hit) => shade(hit, memo),
         None => background,
     };

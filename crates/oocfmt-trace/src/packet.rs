@@ -16,6 +16,10 @@
 //! not get are logged under each ray's key ([`Memo::release_deferred`]), so that the caller can
 //! replay them in the single-ray order. Rays that cannot form a packet are traced alone.
 //!
+//! [`Tracer::trace_packet_layers`] walks the same way, each ray also keeping the translucent
+//! LOD entries it goes on behind ([`Tracer::trace_layers`]): they do not end it, so it walks
+//! on as alone, and collects the same layers.
+//!
 //! Under a part filter each ray asks the filter's grid at the nodes where it asks alone, with
 //! its own interval, and leaves the packet's path where its stretch meets no visible part's
 //! box ([`Tracer::with_parts`]), so this too is as alone.
@@ -32,8 +36,8 @@ use crate::intersect::{ray_box, Ray};
 use crate::lanes::RayLanes;
 use crate::parts::{BlockMask, Cover, VisibilityGrid};
 use crate::traverse::{
-    clamp_mid, grid_due, opaque, proxy_sample, push_last, shown, visible_entries, Best, Hit, Memo,
-    Tracer, NO_GRID,
+    clamp_mid, grid_due, opaque, proxy_sample, push_last, shown, visible_entries, Best, Collected,
+    Hit, Layers, Memo, Tracer, NO_GRID,
 };
 
 /// Which rays of a packet (bit i: ray i).
@@ -302,15 +306,10 @@ impl Tracer<'_> {
         keys: &[u32; N],
         memo: &Memo,
     ) -> [Option<Hit>; N] {
-        let eps = std::array::from_fn(|i| self.ray_eps(&rays[i]));
-        match (Lanes::new(rays, eps), RayLanes::new(rays)) {
-            // Two copies of the walk, as alone ([`Tracer::trace`]): without a grid, not even
-            // its branch in the node loop.
-            (Some(lanes), Some(kernel)) => match self.grid {
-                Some(g) => self.walk::<N, true>(rays, keys, &lanes, &kernel, memo, g),
-                None => self.walk::<N, false>(rays, keys, &lanes, &kernel, memo, &NO_GRID),
-            },
-            _ => {
+        let mut near = Nearest::new([f32::INFINITY; N], Ending);
+        match self.walk_packet(rays, keys, memo, &mut near) {
+            Some(()) => std::array::from_fn(|i| near.best[i].hit(near.best_t[i])),
+            None => {
                 let mut out = [const { None }; N];
                 for ((o, ray), &key) in out.iter_mut().zip(rays).zip(keys) {
                     memo.defer_wants(Some(key));
@@ -322,27 +321,76 @@ impl Tracer<'_> {
         }
     }
 
-    /// The packet's walk, asking `grid` where `GRID`.
-    fn walk<'m, const N: usize, const GRID: bool>(
+    /// [`Tracer::trace_layers`] of each of `rays` closer than its `t_max`, into `out`,
+    /// walking the tree once for all of them where they can form a packet, as
+    /// [`Tracer::trace_packet`] does: each ray collects the same layers as alone, and none is
+    /// walked again to find them. (`out` is written in place: a packet's layers take
+    /// kilobytes, and moving them cost more than the walk on full-detail views.)
+    pub fn trace_packet_layers<const N: usize>(
         &self,
         rays: &[Ray; N],
         keys: &[u32; N],
-        lanes: &Lanes<N>,
-        kernel: &RayLanes<N>,
+        t_max: [f32; N],
+        memo: &Memo,
+        out: &mut [Layers; N],
+    ) {
+        let t_max = t_max.map(|t| if t.is_nan() { f32::INFINITY } else { t });
+        let layers: [Collected<'_>; N] = std::array::from_fn(|_| Collected::new());
+        let mut near = Nearest::new(t_max, layers);
+        if self.walk_packet(rays, keys, memo, &mut near).is_some() {
+            for (i, o) in out.iter_mut().enumerate() {
+                if let Some(l) = near.layers.get_mut(i) {
+                    l.finish(near.best_t[i], near.best[i], o);
+                }
+            }
+            return;
+        }
+        for (((o, ray), &key), t) in out.iter_mut().zip(rays).zip(keys).zip(t_max) {
+            memo.defer_wants(Some(key));
+            *o = self.trace_layers(ray, t, memo);
+        }
+        memo.defer_wants(None);
+    }
+
+    /// The packet walk of `rays`, from and into `near` (each ray's farthest distance, and
+    /// where it keeps layers); None when the rays cannot form a packet.
+    fn walk_packet<'m, const N: usize, L: Layering<'m>>(
+        &self,
+        rays: &[Ray; N],
+        keys: &[u32; N],
         memo: &'m Memo,
-        grid: &VisibilityGrid,
-    ) -> [Option<Hit>; N] {
+        near: &mut Nearest<'m, N, L>,
+    ) -> Option<()> {
+        let eps = std::array::from_fn(|i| self.ray_eps(&rays[i]));
+        let (lanes, kernel) = (Lanes::new(rays, eps)?, RayLanes::new(rays)?);
         let p = Packet {
             rays,
             keys,
-            lanes,
-            kernel,
+            lanes: &lanes,
+            kernel: &kernel,
             memo,
         };
+        // Two copies of the walk, as alone ([`Tracer::trace`]): without a grid, not even its
+        // branch in the node loop.
+        match self.grid {
+            Some(g) => self.walk::<N, true, L>(&p, g, near),
+            None => self.walk::<N, false, L>(&p, &NO_GRID, near),
+        }
+        Some(())
+    }
+
+    /// The packet's walk from `near`, asking `grid` where `GRID`: each ray's nearest surface
+    /// (and, when collecting, the layers in front of it).
+    fn walk<'m, const N: usize, const GRID: bool, L: Layering<'m>>(
+        &self,
+        p: &Packet<'_, 'm, N>,
+        grid: &VisibilityGrid,
+        near: &mut Nearest<'m, N, L>,
+    ) {
+        let (rays, lanes, memo) = (p.rays, p.lanes, p.memo);
         let mut lasts = LastsN::new();
-        let mut near = Nearest::new();
-        let Some(root) = self.packet_root(&p) else {
-            return [const { None }; N];
+        let Some(root) = self.packet_root(p, &near.best_t) else {
+            return;
         };
         let mut stack = ArrayVec::<Entry<'m, N>, { MAX_TREE_DEPTH as usize }>::new();
         stack.push(root);
@@ -388,11 +436,11 @@ impl Tracer<'_> {
                         split,
                         lod,
                     } => match self.packet_lod_step(
-                        &p,
+                        p,
                         &at,
                         &mut lods,
                         &mut lasts,
-                        &mut near,
+                        near,
                         (a, split, lod),
                     ) {
                         Some(next) => next,
@@ -403,7 +451,7 @@ impl Tracer<'_> {
                         count,
                         block,
                     } => {
-                        self.packet_leaf_step(&p, &at, &lasts, &mut near, (first, count), block);
+                        self.packet_leaf_step(p, &at, &lasts, near, (first, count), block);
                         break;
                     }
                 };
@@ -417,22 +465,21 @@ impl Tracer<'_> {
             }
         }
         memo.visited.set(memo.visited.get() + visited);
-        let mut out = [const { None }; N];
-        for ((o, b), t) in out.iter_mut().zip(near.best).zip(near.best_t) {
-            *o = b.hit(t);
-        }
-        out
     }
 
     /// The stack entry the packet starts from: the root treelet, for the rays that meet the
-    /// scene's box. None when no ray does, or the root block is not available (then each ray
-    /// wants it).
-    fn packet_root<'m, const N: usize>(&self, w: &Packet<'_, 'm, N>) -> Option<Entry<'m, N>> {
+    /// scene's box closer than their `t_max`. None when no ray does, or the root block is not
+    /// available (then each ray wants it).
+    fn packet_root<'m, const N: usize>(
+        &self,
+        w: &Packet<'_, 'm, N>,
+        t_max: &[f32; N],
+    ) -> Option<Entry<'m, N>> {
         let (mut t0, mut t1) = ([0f32; N], [0f32; N]);
         let mut live: Mask = 0;
-        for (i, ray) in w.rays.iter().enumerate() {
+        for ((i, ray), &t_max) in w.rays.iter().enumerate().zip(t_max) {
             let eps = w.lanes.eps[i];
-            if let Some((a, b)) = ray_box(ray, self.lo, self.hi, eps, 0.0, f32::INFINITY) {
+            if let Some((a, b)) = ray_box(ray, self.lo, self.hi, eps, 0.0, t_max) {
                 (t0[i], t1[i]) = (a, b);
                 live |= 1 << i;
             }
@@ -468,13 +515,13 @@ impl Tracer<'_> {
     /// is not available, each as alone. Returns the split of the rays going on into the child
     /// treelets, as [`At::step`] takes it; None where no ray goes on.
     #[inline(always)]
-    fn packet_lod_step<'m, const N: usize>(
+    fn packet_lod_step<'m, const N: usize, L: Layering<'m>>(
         &self,
         w: &Packet<'_, 'm, N>,
         at: &At<'m, N>,
         lods: &mut u8,
         lasts: &mut LastsN<'m, N>,
-        near: &mut Nearest<'m, N>,
+        near: &mut Nearest<'m, N, L>,
         (a, split, lod): (u8, f32, u32),
     ) -> Option<(Split<N>, u32, u32, &'m TreeletData)> {
         let data = at.data;
@@ -558,12 +605,12 @@ impl Tracer<'_> {
     /// or, when the block is not available, each ray's last voxel on the path (`lasts`; the
     /// block is wanted either way).
     #[inline(always)]
-    fn packet_leaf_step<'m, const N: usize>(
+    fn packet_leaf_step<'m, const N: usize, L: Layering<'m>>(
         &self,
         w: &Packet<'_, 'm, N>,
         at: &At<'m, N>,
         lasts: &LastsN<'m, N>,
-        near: &mut Nearest<'m, N>,
+        near: &mut Nearest<'m, N, L>,
         (first, count): (u16, u16),
         block: u32,
     ) {
@@ -645,33 +692,62 @@ struct Packet<'r, 'm, const N: usize> {
 /// The LOD nodes on the packet's path, outermost first.
 type LastsN<'m, const N: usize> = ArrayVec<LastVoxels<'m, N>, { MAX_TREE_DEPTH as usize }>;
 
-/// Each ray's nearest surface so far, at `best_t`. Kept apart from the rest of the walk's
-/// state: the leaf kernel writes `best_t` through a pointer, and a struct holding the rays'
-/// references too would then be read back from memory after every leaf.
-struct Nearest<'m, const N: usize> {
+/// Each ray's nearest surface so far, at `best_t`, and where the rays keep the translucent
+/// surfaces in front of it (`L`). Kept apart from the rest of the walk's state: the leaf
+/// kernel writes `best_t` through a pointer, and a struct holding the rays' references too
+/// would then be read back from memory after every leaf.
+struct Nearest<'m, const N: usize, L> {
     best: [Best<'m>; N],
     best_t: [f32; N],
+    layers: L,
 }
 
-impl<'m, const N: usize> Nearest<'m, N> {
-    fn new() -> Nearest<'m, N> {
+impl<'m, const N: usize, L: Layering<'m>> Nearest<'m, N, L> {
+    /// Nothing found yet closer than `t_max`, translucent surfaces kept in `layers`.
+    fn new(t_max: [f32; N], layers: L) -> Nearest<'m, N, L> {
         Nearest {
             best: [Best::None; N],
-            best_t: [f32::INFINITY; N],
+            best_t: t_max,
+            layers,
         }
     }
 
-    /// Ray `i`, which found `found` on the current path, keeps it when it is nearer.
+    /// Ray `i`, which found `found` on the current path, keeps it when it is nearer: as a
+    /// layer it goes on behind where `L` keeps it, else as its nearest.
     #[inline(always)]
     fn offer(&mut self, i: usize, found: Option<(f32, Best<'m>)>) {
         if let (Some((t, s)), Some(bt), Some(b)) =
             (found, self.best_t.get_mut(i), self.best.get_mut(i))
         {
-            if t < *bt {
+            if t < *bt && !self.layers.keep(i, t, s) {
                 *bt = t;
                 *b = s;
             }
         }
+    }
+}
+
+/// Where the rays of a packet keep the translucent surfaces they go on behind.
+trait Layering<'m> {
+    /// Whether ray `i` keeps surface `s` at `t` as a layer and goes on behind it.
+    fn keep(&mut self, i: usize, t: f32, s: Best<'m>) -> bool;
+}
+
+/// Nowhere ([`Tracer::trace_packet`]): the nearest surface ends a ray, translucent or not.
+struct Ending;
+
+impl<'m> Layering<'m> for Ending {
+    #[inline(always)]
+    fn keep(&mut self, _: usize, _: f32, _: Best<'m>) -> bool {
+        false
+    }
+}
+
+/// Each ray's own layers, as alone ([`Collected::keep`]; [`Tracer::trace_packet_layers`]).
+impl<'m, const N: usize> Layering<'m> for [Collected<'m>; N] {
+    #[inline(always)]
+    fn keep(&mut self, i: usize, t: f32, s: Best<'m>) -> bool {
+        self.get_mut(i).is_some_and(|l| l.keep(t, s))
     }
 }
 

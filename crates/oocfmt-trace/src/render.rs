@@ -5,7 +5,9 @@
 //! RGB, of `spp` further rays through stratified points of the pixel
 //! ([`crate::sampling::pixel_offset`]), so the depth stays that of the centre. The centre rays
 //! of a tile are traced first, in packets of 2 × 2 pixels ([`Tracer::trace_packet`]: the same
-//! hits as ray by ray, in a fraction of the time), then each pixel is shaded in turn. A tile
+//! hits as ray by ray, in a fraction of the time; with translucent LOD entries
+//! [`Tracer::trace_packet_layers`], every layer each ray meets in the same walk), then each pixel
+//! is shaded in turn. A tile
 //! none of whose pixels can see the scene's box ([`crate::reach`]) is background without a
 //! ray.
 
@@ -16,7 +18,7 @@ use serde::Serialize;
 
 use crate::cache::{BlockCache, CacheStats};
 use crate::camera::{Camera, Frame};
-use crate::composite::composite;
+use crate::composite::blend;
 use crate::error::TraceError;
 use crate::intersect::Ray;
 use crate::light::{shoulder_light, Shadows};
@@ -27,7 +29,7 @@ use crate::sampling::{hash, pixel_offset, Stream};
 use crate::scene::Scene;
 use crate::section::{Clip, Section};
 use crate::shade::{encode_srgb, Lighting, Secondary};
-use crate::traverse::{Hit, Memo, Surface, Tracer};
+use crate::traverse::{Hit, Layers, Memo, Surface, Tracer};
 
 const TILE: u32 = 16;
 
@@ -78,14 +80,13 @@ pub struct RenderOptions {
     /// How far ambient-occlusion rays look; None: [`default_distance`] of the scene.
     pub ao_distance: Option<f32>,
     /// Show LOD entries that cover part of their cell as translucent, composited front to back
-    /// over what lies behind (spec §5.1); off, every LOD entry ends its ray. On measurements
-    /// the layers cost more time than choosing a lower PoE does for the same error
-    /// (`docs/benchmarks.md`), so it is off by default; thin parts then swell to their cells.
+    /// over what lies behind (spec §5.1), so thin parts keep their size; off, every LOD entry
+    /// ends its ray, a little faster on rough surfaces, and thin parts swell to their cells.
     pub translucent: bool,
 }
 
 impl RenderOptions {
-    /// Full detail, headlight, one ray per pixel.
+    /// Full detail, headlight, one ray per pixel, translucent LOD entries.
     pub const DEFAULT: RenderOptions = RenderOptions {
         poe: 0.0,
         background: [0.05, 0.06, 0.08],
@@ -94,7 +95,7 @@ impl RenderOptions {
         light: None,
         ao: 0,
         ao_distance: None,
-        translucent: false,
+        translucent: true,
     };
 
     fn check(&self) -> Result<(), TraceError> {
@@ -227,43 +228,142 @@ pub struct FrameStats {
     pub cache: CacheStats,
 }
 
-/// The primary hits of a tile's `rays` (row-major, `width` per row): packets of
-/// [`PACKET_W`] × [`PACKET_H`] pixels traced together, the pixels of the tile's ragged edge
-/// alone. Each ray's wants are logged under its index in the tile, for the caller to release
-/// in pixel order.
-fn primary_hits(tracer: &Tracer<'_>, rays: &[Ray], width: usize, memo: &Memo) -> Vec<Option<Hit>> {
-    const N: usize = PACKET_W * PACKET_H;
-    let height = rays.len() / width.max(1);
-    let mut hits: Vec<Option<Hit>> = (0..rays.len()).map(|_| None).collect();
+/// Pixels of a tile traced together: a packet of [`PACKET_W`] × [`PACKET_H`], or one pixel of
+/// the tile's ragged edge (row-major indices in the tile).
+enum Pixels {
+    Packet([usize; PACKET_W * PACKET_H]),
+    Alone(usize),
+}
+
+/// Calls `each` with the pixels of a tile of `width` × `height` in the order they are traced.
+fn packets(width: usize, height: usize, mut each: impl FnMut(Pixels)) {
     for py in (0..height).step_by(PACKET_H) {
         for px in (0..width).step_by(PACKET_W) {
-            let idx: [usize; N] =
-                std::array::from_fn(|j| (py + j / PACKET_W) * width + px + j % PACKET_W);
-            let whole = px + PACKET_W <= width && py + PACKET_H <= height;
-            if let (true, Some(&fill)) = (whole, rays.get(idx[0])) {
-                // Every index is inside a whole packet: `fill` is never used.
-                let packet = idx.map(|k| rays.get(k).copied().unwrap_or(fill));
-                let out = tracer.trace_packet(&packet, &idx.map(|k| k as u32), memo);
-                for (k, hit) in idx.into_iter().zip(out) {
-                    if let Some(h) = hits.get_mut(k) {
-                        *h = hit;
-                    }
-                }
+            if px + PACKET_W <= width && py + PACKET_H <= height {
+                each(Pixels::Packet(std::array::from_fn(|j| {
+                    (py + j / PACKET_W) * width + px + j % PACKET_W
+                })));
                 continue;
             }
             for y in py..(py + PACKET_H).min(height) {
                 for x in px..(px + PACKET_W).min(width) {
-                    let k = y * width + x;
-                    if let (Some(ray), Some(h)) = (rays.get(k), hits.get_mut(k)) {
-                        memo.defer_wants(Some(k as u32));
-                        *h = tracer.trace(ray, memo);
-                        memo.defer_wants(None);
-                    }
+                    each(Pixels::Alone(y * width + x));
                 }
             }
         }
     }
-    hits
+}
+
+/// The rays of packet `idx` in `rays` (None past the end).
+fn packet_rays(
+    rays: &[Ray],
+    idx: [usize; PACKET_W * PACKET_H],
+) -> Option<[Ray; PACKET_W * PACKET_H]> {
+    let &fill = rays.get(idx[0])?;
+    // Every index is inside a whole packet: `fill` is never used.
+    Some(idx.map(|k| rays.get(k).copied().unwrap_or(fill)))
+}
+
+/// What a tile's primary rays met, pixel by pixel: the surface each ends on and, where LOD
+/// entries are translucent, the layers in front of it (`front[spans[k]]`, nearest first).
+#[derive(Default)]
+struct Primaries {
+    ends: Vec<Option<Hit>>,
+    front: Vec<Hit>,
+    spans: Vec<(u32, u32)>,
+}
+
+impl Primaries {
+    /// Takes `layers` as what pixel `k`'s ray met.
+    fn put(&mut self, k: usize, layers: &mut Layers) {
+        let start = self.front.len() as u32;
+        self.front.extend(layers.translucent.drain(..));
+        if let (Some(span), Some(end)) = (self.spans.get_mut(k), self.ends.get_mut(k)) {
+            *span = (start, self.front.len() as u32);
+            *end = layers.end.take();
+        }
+    }
+
+    /// Pixel `k`'s translucent layers and the surface behind them.
+    fn of(&self, k: usize) -> (&[Hit], Option<&Hit>) {
+        let front = self
+            .spans
+            .get(k)
+            .and_then(|&(a, b)| self.front.get(a as usize..b as usize));
+        let end = self.ends.get(k).and_then(Option::as_ref);
+        (front.unwrap_or(&[]), end)
+    }
+}
+
+/// The primary hits of a tile's `rays` (row-major, `width` per row), traced in packets
+/// ([`packets`]). Each ray's wants are logged under its index in the tile, for the caller to
+/// release in pixel order.
+fn primary_hits(tracer: &Tracer<'_>, rays: &[Ray], width: usize, memo: &Memo) -> Primaries {
+    let height = rays.len() / width.max(1);
+    let mut hits: Vec<Option<Hit>> = (0..rays.len()).map(|_| None).collect();
+    packets(width, height, |pixels| match pixels {
+        Pixels::Packet(idx) => {
+            let Some(packet) = packet_rays(rays, idx) else {
+                return;
+            };
+            let out = tracer.trace_packet(&packet, &idx.map(|k| k as u32), memo);
+            for (k, hit) in idx.into_iter().zip(out) {
+                if let Some(h) = hits.get_mut(k) {
+                    *h = hit;
+                }
+            }
+        }
+        Pixels::Alone(k) => {
+            if let (Some(ray), Some(h)) = (rays.get(k), hits.get_mut(k)) {
+                memo.defer_wants(Some(k as u32));
+                *h = tracer.trace(ray, memo);
+                memo.defer_wants(None);
+            }
+        }
+    });
+    Primaries {
+        ends: hits,
+        ..Primaries::default()
+    }
+}
+
+/// [`primary_hits`] with LOD entries translucent: each ray's layers closer than its
+/// `limits` entry ([`Tracer::trace_packet_layers`]).
+fn primary_layers(
+    tracer: &Tracer<'_>,
+    rays: &[Ray],
+    limits: &[f32],
+    width: usize,
+    memo: &Memo,
+) -> Primaries {
+    let height = rays.len() / width.max(1);
+    let mut out = Primaries {
+        ends: (0..rays.len()).map(|_| None).collect(),
+        front: Vec::new(),
+        spans: vec![(0, 0); rays.len()],
+    };
+    let limit = |k: usize| limits.get(k).copied().unwrap_or(f32::INFINITY);
+    let mut scratch: [Layers; PACKET_W * PACKET_H] = Default::default();
+    packets(width, height, |pixels| match pixels {
+        Pixels::Packet(idx) => {
+            let Some(packet) = packet_rays(rays, idx) else {
+                return;
+            };
+            let keys = idx.map(|k| k as u32);
+            tracer.trace_packet_layers(&packet, &keys, idx.map(limit), memo, &mut scratch);
+            for (k, l) in idx.into_iter().zip(&mut scratch) {
+                out.put(k, l);
+            }
+        }
+        Pixels::Alone(k) => {
+            if let Some(ray) = rays.get(k) {
+                memo.defer_wants(Some(k as u32));
+                out.put(k, &mut tracer.trace_layers(ray, limit(k), memo));
+                memo.defer_wants(None);
+            }
+        }
+    });
+    out
 }
 
 /// Adds linear RGB `c` to `sum`.
@@ -459,30 +559,42 @@ impl<'a> FrameJob<'a> {
                 }
             }
         }
-        let mut hits = primary_hits(&self.tracer, &rays, (x1 - x0) as usize, memo);
+        let width = (x1 - x0) as usize;
+        let prim = if self.layered() {
+            let limits: Vec<f32> = clips.iter().flatten().map(|c| c.limit()).collect();
+            primary_layers(&self.tracer, &rays, &limits, width, memo)
+        } else {
+            primary_hits(&self.tracer, &rays, width, memo)
+        };
         let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (y, x)));
         for (k, (y, x)) in pixels.enumerate() {
             // The primary ray's wants, in the order it would have made them traced alone:
             // before its shading's.
             memo.release_deferred(k as u32);
-            let (Some(&ray), Some(hit)) = (rays.get(k), hits.get_mut(k)) else {
+            let Some(&ray) = rays.get(k) else {
                 continue;
             };
             let clip = clips.as_ref().and_then(|c| c.get(k)).copied();
             let clip = clip.unwrap_or(Clip::Whole);
-            let hit = hit.take().filter(|h| h.t <= clip.limit());
-            out.endings.record(hit.as_ref());
+            let (front, end) = prim.of(k);
+            let end = end.filter(|h| h.t <= clip.limit());
+            let first = front.first().or(end);
+            out.endings.record(first);
             out.depth
-                .push(hit.as_ref().map_or(f32::INFINITY, |h| h.t + clip.start()));
-            let centre = (&ray, clip.limit());
-            let (colour, sampled) =
-                self.colour(x, y, centre, hit.as_ref(), memo, &mut out.secondary);
-            out.model.push(hit.is_some() || sampled);
+                .push(first.map_or(f32::INFINITY, |h| h.t + clip.start()));
+            let (colour, sampled) = self.colour(x, y, &ray, (front, end), memo, &mut out.secondary);
+            out.model.push(first.is_some() || sampled);
             out.rgb.push(colour);
         }
         memo.flush(self.cache);
         out.visited = memo.take_visited();
         out
+    }
+
+    /// Whether rays go on behind translucent LOD entries: asked for, and rays stop on LOD
+    /// entries at all (at PoE 0 a ray ends on one only where a block is missing, as opaque).
+    fn layered(&self) -> bool {
+        self.opts.translucent && self.tracer.lod_c > 0.0
     }
 
     /// Tile `tile` of `n` pixels, none of whose rays can meet the scene's box: what tracing
@@ -502,60 +614,52 @@ impl<'a> FrameJob<'a> {
         }
     }
 
-    /// The shading: the sRGB colour of pixel (x, y), whose centre ray (as traced, with the
-    /// farthest a section keeps along it) is `centre` and hit `hit`, and whether one of the pixel's sample rays hit the model. With one ray per pixel
-    /// that is the centre ray's colour (and no sample ray); with more, the stratified mean
-    /// ([`FrameJob::stratified`]).
+    /// The shading: the sRGB colour of pixel (x, y), whose centre ray (as traced) `centre`
+    /// met the translucent layers `front` and then `end`, and whether one of the pixel's
+    /// sample rays hit the model. With one ray per pixel that is the centre ray's colour (and
+    /// no sample ray); with more, the stratified mean ([`FrameJob::stratified`]).
     #[inline]
     fn colour(
         &self,
         x: u32,
         y: u32,
-        (centre, limit): (&Ray, f32),
-        hit: Option<&Hit>,
+        centre: &Ray,
+        met: (&[Hit], Option<&Hit>),
         memo: &mut Memo,
         secondary: &mut Secondary,
     ) -> ([u8; 3], bool) {
         if self.opts.spp > 1 {
             return self.stratified(x, y, memo, secondary);
         }
-        let colour = match hit {
-            Some(hit) => {
-                let seed = hash(x, y, 0, Stream::Occlusion);
-                self.shaded(hit, (centre, limit), seed, memo, secondary)
-                    .map(encode_srgb)
-            }
-            None => self.background,
-        };
-        (colour, false)
+        let seed = hash(x, y, 0, Stream::Occlusion);
+        let colour = self.shaded(centre, met, seed, memo, secondary);
+        (
+            colour.map_or(self.background, |c| c.map(encode_srgb)),
+            false,
+        )
     }
 
-    /// The linear RGB colour of `ray`, whose first hit is `hit`: its shade, composited over
-    /// what lies behind (up to `limit`, a section's end of the ray) when it is a translucent
-    /// LOD entry ([`composite`]).
+    /// The linear RGB colour of `ray`, which met the translucent layers `front` (nearest
+    /// first) and then `end`: the shade of each, composited front to back over the background
+    /// ([`blend`]). None when it met nothing.
     #[inline]
     fn shaded(
         &self,
-        hit: &Hit,
-        (ray, limit): (&Ray, f32),
+        ray: &Ray,
+        (front, end): (&[Hit], Option<&Hit>),
         seed: u64,
         memo: &mut Memo,
         secondary: &mut Secondary,
-    ) -> [f32; 3] {
-        if !(self.opts.translucent && hit.is_translucent()) {
-            return self.lighting.colour(hit, ray, seed, memo, secondary);
-        }
-        // The packet found the first surface; one walk of the single ray finds every one.
+    ) -> Option<[f32; 3]> {
         let lighting = &self.lighting;
-        let mut shade = |h: &Hit, m: &mut Memo| lighting.colour(h, ray, seed, m, secondary);
-        composite(
-            &self.tracer,
-            ray,
-            limit,
-            memo,
-            self.opts.background,
-            &mut shade,
-        )
+        Some(match (front, end) {
+            ([], None) => return None,
+            ([], Some(hit)) => lighting.colour(hit, ray, seed, memo, secondary),
+            _ => {
+                let mut shade = |h: &Hit, m: &mut Memo| lighting.colour(h, ray, seed, m, secondary);
+                blend(front, end, self.opts.background, memo, &mut shade)
+            }
+        })
     }
 
     /// The sRGB encoding of the mean, in linear RGB, of `spp` rays through stratified points
@@ -575,17 +679,19 @@ impl<'a> FrameJob<'a> {
             let [ox, oy] = pixel_offset(x, y, k, spp);
             let ray = self.frame.ray_at(f64::from(x) + ox, f64::from(y) + oy);
             let clip = self.section.map_or(Clip::Whole, |s| s.clip(&ray));
-            let traced = clip.ray(&ray);
-            let hit = traced.and_then(|r| Some((self.tracer.trace(&r, memo)?, r)));
-            let c = match hit.filter(|(h, _)| h.t <= clip.limit()) {
-                Some((hit, ray)) => {
-                    any = true;
-                    let seed = hash(x, y, k, Stream::Occlusion);
-                    self.shaded(&hit, (&ray, clip.limit()), seed, memo, secondary)
+            let seed = hash(x, y, k, Stream::Occlusion);
+            let c = clip.ray(&ray).and_then(|r| {
+                let limit = clip.limit();
+                if self.layered() {
+                    let l = self.tracer.trace_layers(&r, limit, memo);
+                    self.shaded(&r, (&l.translucent, l.end.as_ref()), seed, memo, secondary)
+                } else {
+                    let hit = self.tracer.trace(&r, memo).filter(|h| h.t <= limit);
+                    self.shaded(&r, (&[], hit.as_ref()), seed, memo, secondary)
                 }
-                None => self.opts.background,
-            };
-            add_to(&mut sum, c);
+            });
+            any |= c.is_some();
+            add_to(&mut sum, c.unwrap_or(self.opts.background));
         }
         (mean_srgb(sum, spp), any)
     }

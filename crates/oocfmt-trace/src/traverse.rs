@@ -105,7 +105,7 @@ pub struct Hit {
 impl Hit {
     /// Whether what lies behind shows through this surface.
     pub fn is_translucent(&self) -> bool {
-        self.coverage < 1.0
+        is_translucent(self.coverage)
     }
 }
 
@@ -215,44 +215,80 @@ struct Walk<'r, 'm> {
     /// Whether translucent surfaces are collected in `layers` (the ray goes on behind them)
     /// rather than ending the ray like opaque ones.
     collect: bool,
-    /// The translucent surfaces met, in the order found, and what they let through.
-    layers: ArrayVec<(f32, Best<'m>), MAX_LAYERS>,
-    through: f32,
+    layers: Collected<'m>,
 }
 
 impl<'m> Walk<'_, 'm> {
     /// Keeps `found` when it is nearer than the nearest surface so far: as the nearest, or,
-    /// when collecting and it is translucent, as a layer the ray goes on behind. Once the
-    /// layers would let almost nothing through, the next one ends the ray as if opaque.
+    /// when collecting, as a layer the ray goes on behind ([`Collected::keep`]).
     #[inline(always)]
     fn offer(&mut self, found: Option<(f32, Best<'m>)>) {
         let Some((t, s)) = found.filter(|&(t, _)| t < self.best_t) else {
             return;
         };
-        if self.collect && !self.layers.is_full() && s.coverage() < 1.0 {
-            let through = self.through * (1.0 - s.coverage().max(0.0));
-            if through >= MIN_TRANSMITTANCE {
-                self.layers.push((t, s));
-                self.through = through;
-                return;
-            }
-            // What would be left behind could hardly show: this surface ends the ray.
+        if self.collect && self.layers.keep(t, s) {
+            return;
         }
         self.best_t = t;
         self.best = s;
     }
+}
 
-    /// The layers in front of the nearest opaque surface, nearest first, and that surface.
-    fn finish(self) -> Layers {
-        let mut layers = self.layers;
-        let best_t = self.best_t;
-        layers.retain(|(t, _)| *t <= best_t);
-        layers.sort_by(|a, b| a.0.total_cmp(&b.0));
-        Layers {
-            translucent: layers.iter().filter_map(|&(t, s)| s.hit(t)).collect(),
-            end: self.best.hit(best_t),
+/// The translucent surfaces one ray has met, in the order found, and what they let through
+/// together: the state the single-ray walk and the packet walk share when they collect
+/// layers ([`Tracer::trace_layers`], [`Tracer::trace_packet_layers`]).
+#[derive(Clone)]
+pub(crate) struct Collected<'m> {
+    layers: ArrayVec<(f32, Best<'m>), MAX_LAYERS>,
+    through: f32,
+}
+
+impl<'m> Collected<'m> {
+    pub(crate) fn new() -> Collected<'m> {
+        Collected {
+            layers: ArrayVec::new(),
+            through: 1.0,
         }
     }
+
+    /// Keeps surface `s` at `t` (nearer than the ray's nearest opaque one) as a layer the
+    /// ray goes on behind, when it is translucent ([`is_translucent`]) and room is left.
+    /// False: it ends the ray, as opaque; so does one after which the layers would let
+    /// less than [`MIN_TRANSMITTANCE`] through, since what is behind could hardly show.
+    #[inline(always)]
+    pub(crate) fn keep(&mut self, t: f32, s: Best<'m>) -> bool {
+        let coverage = s.coverage();
+        if self.layers.is_full() || !is_translucent(coverage) {
+            return false;
+        }
+        let through = self.through * (1.0 - coverage.max(0.0));
+        if through < MIN_TRANSMITTANCE {
+            return false;
+        }
+        self.layers.push((t, s));
+        self.through = through;
+        true
+    }
+
+    /// Writes into `out` the layers in front of the nearest opaque surface `best` at
+    /// `best_t`, nearest first, and that surface.
+    pub(crate) fn finish(&mut self, best_t: f32, best: Best<'m>, out: &mut Layers) {
+        let layers = &mut self.layers;
+        layers.retain(|(t, _)| *t <= best_t);
+        layers.sort_by(|a, b| a.0.total_cmp(&b.0));
+        out.translucent.clear();
+        out.translucent
+            .extend(layers.iter().filter_map(|&(t, s)| s.hit(t)));
+        out.end = best.hit(best_t);
+    }
+}
+
+/// Whether a surface of coverage `coverage` lets what lies behind show: by at least
+/// [`MIN_TRANSMITTANCE`] (an entry covering more than nine tenths of its cell is shown opaque
+/// without looking behind it).
+#[inline(always)]
+pub(crate) fn is_translucent(coverage: f32) -> bool {
+    1.0 - coverage >= MIN_TRANSMITTANCE
 }
 
 /// What a ray meets ([`Tracer::trace_layers`]): the translucent surfaces in front, nearest
@@ -260,7 +296,8 @@ impl<'m> Walk<'_, 'm> {
 /// through).
 #[derive(Clone, Debug, Default)]
 pub struct Layers {
-    /// Surfaces with coverage below 1, at most [`MAX_LAYERS`].
+    /// Surfaces that let what lies behind show ([`Hit::is_translucent`]), at most
+    /// [`MAX_LAYERS`].
     pub translucent: ArrayVec<Hit, MAX_LAYERS>,
     /// The opaque surface behind them.
     pub end: Option<Hit>,
@@ -271,9 +308,10 @@ pub struct Layers {
 pub const MAX_LAYERS: usize = 16;
 
 /// Transmittance below which the next surface ends the ray as if opaque: what would still
-/// show behind it is at most 1/32 of the pixel, and the layers a rough surface stacks up cost
-/// more than they change (`docs/notes/2026-12-02-prefiltered-lod.md`).
-pub const MIN_TRANSMITTANCE: f32 = 1.0 / 32.0;
+/// show behind it is at most a tenth of the pixel. Nearly every cell of a rough surface is a
+/// little short of full coverage, and looking behind each cost more time than it changed the
+/// picture (`docs/benchmarks.md`).
+pub const MIN_TRANSMITTANCE: f32 = 0.1;
 
 /// The grid the walk without one is handed and never asks.
 pub(crate) static NO_GRID: VisibilityGrid = VisibilityGrid::EMPTY;
@@ -583,8 +621,7 @@ impl<'a> Tracer<'a> {
             best: Best::None,
             best_t: t_max,
             collect,
-            layers: ArrayVec::new(),
-            through: 1.0,
+            layers: Collected::new(),
         };
         w.stack.push(Entry {
             data: root_data,
@@ -659,7 +696,9 @@ impl<'a> Tracer<'a> {
             }
         }
         memo.visited.set(memo.visited.get() + visited);
-        w.finish()
+        let mut out = Layers::default();
+        w.layers.finish(w.best_t, w.best, &mut out);
+        out
     }
 
     /// The LOD step of [`Tracer::trace_to`], at the LOD node of `at` with split `(axis,

@@ -21,7 +21,7 @@ use oocfmt_scenes::rng::Rng;
 use oocfmt_trace::blocks::{LodKind, NodeView, TreeletData, TriangleData};
 use oocfmt_trace::cache::{CacheStats, Wish};
 use oocfmt_trace::intersect::Ray;
-use oocfmt_trace::traverse::{Hit, Memo, Surface, Tracer};
+use oocfmt_trace::traverse::{Hit, Layers, Memo, Surface, Tracer};
 use oocfmt_trace::{render, AsyncCache, BlockCache, BlockingCache, Camera, RenderOptions, Scene};
 
 /// A cache that hands out another's blocks and records the requests it is given (each flush
@@ -61,9 +61,9 @@ impl BlockCache for Recording {
     }
 }
 
-/// A hit as bits: distance, kind, what it met, radius.
-fn bits(h: &Option<Hit>) -> Option<(u32, u8, Vec<u32>, u32)> {
-    let h = h.as_ref()?;
+/// A hit as bits: distance, kind, what it met, radius, shade and coverage.
+fn bits(h: Option<&Hit>) -> Option<(u32, u8, Vec<u32>, [u32; 3])> {
+    let h = h?;
     let f = |v: &[f32]| v.iter().map(|c| c.to_bits()).collect::<Vec<_>>();
     let (kind, what) = match &h.surface {
         Surface::Triangle {
@@ -87,17 +87,34 @@ fn bits(h: &Option<Hit>) -> Option<(u32, u8, Vec<u32>, u32)> {
             deviation,
         } => (3, [f(normal), f(colour), f(&[*deviation])].concat()),
     };
-    Some((h.t.to_bits(), kind, what, h.radius.to_bits()))
+    let (radius, shade, coverage) = (h.radius, h.shade, h.coverage);
+    Some((
+        h.t.to_bits(),
+        kind,
+        what,
+        [radius, shade, coverage].map(f32::to_bits),
+    ))
+}
+
+/// A ray's layers as bits ([`bits`]): the translucent surfaces, front to back, then the end.
+type LayerBits = Vec<Option<(u32, u8, Vec<u32>, [u32; 3])>>;
+
+fn layer_bits(l: &Layers) -> LayerBits {
+    let front = l.translucent.iter().map(|h| bits(Some(h)));
+    front.chain([bits(l.end.as_ref())]).collect()
 }
 
 /// A cache and what to do between two frames.
 type Cache = (Arc<dyn BlockCache>, Box<dyn Fn()>);
 
-/// How the rays ended: triangle, voxel, proxy, plane, miss.
-type Endings = [usize; 5];
+/// How the rays ended: triangle, voxel, proxy, plane, miss; and how many met translucent
+/// layers in front.
+type Endings = [usize; 6];
 
 /// Traces `packets` both ways through `cache` (packets of 16 make a tile: the memos are
-/// cleared and flushed between tiles) and asserts the same hits, nodes visited and requests.
+/// cleared and flushed between tiles) and asserts the same hits, nodes visited and requests;
+/// then the same of their layers ([`Tracer::trace_packet_layers`] against
+/// [`Tracer::trace_layers`]), every other ray ending at 1.5 times its hit's distance.
 fn same<const N: usize>(
     scene: &Scene,
     cache: Arc<dyn BlockCache>,
@@ -108,22 +125,44 @@ fn same<const N: usize>(
     let (a, b) = (Recording::new(Arc::clone(&cache)), Recording::new(cache));
     let (ta, tb) = (Tracer::new(scene, &a, lod_c), Tracer::new(scene, &b, lod_c));
     let (mut ma, mut mb) = (Memo::new(scene), Memo::new(scene));
-    let mut endings = [0; 5];
+    let mut endings = [0; 6];
+    let mut layered = 0;
     let keys: [u32; N] = std::array::from_fn(|i| i as u32);
     for tile in packets.chunks(16) {
         ma.clear();
         mb.clear();
+        let mut ends = Vec::new();
         for p in tile {
             let hp = ta.trace_packet(p, &keys, &ma);
             ma.release_deferred(u32::MAX);
             for (i, (ray, hp)) in p.iter().zip(&hp).enumerate() {
                 let hs = tb.trace(ray, &mb);
                 assert_eq!(
-                    bits(hp),
-                    bits(&hs),
+                    bits(hp.as_ref()),
+                    bits(hs.as_ref()),
                     "{what}: ray {i} of {p:?}, lod_c {lod_c}"
                 );
-                endings[bits(&hs).map_or(4, |b| usize::from(b.1))] += 1;
+                endings[bits(hs.as_ref()).map_or(4, |b| usize::from(b.1))] += 1;
+                ends.push(hs.map_or(f32::INFINITY, |h| h.t));
+            }
+        }
+        let mut lp: [Layers; N] = std::array::from_fn(|_| Layers::default());
+        for (p, ends) in tile.iter().zip(ends.chunks(N)) {
+            let t_max = std::array::from_fn(|i| match i % 2 {
+                0 => f32::INFINITY,
+                _ => 1.5 * ends[i],
+            });
+            ta.trace_packet_layers(p, &keys, t_max, &ma, &mut lp);
+            ma.release_deferred(u32::MAX);
+            for (i, (ray, lp)) in p.iter().zip(&lp).enumerate() {
+                let ls = tb.trace_layers(ray, t_max[i], &mb);
+                assert_eq!(
+                    layer_bits(lp),
+                    layer_bits(&ls),
+                    "{what}: layers of ray {i} of {p:?} to {}, lod_c {lod_c}",
+                    t_max[i]
+                );
+                layered += usize::from(!ls.translucent.is_empty());
             }
         }
         assert_eq!(
@@ -136,6 +175,7 @@ fn same<const N: usize>(
     }
     let (ra, rb) = (a.requests.into_inner(), b.requests.into_inner());
     assert_eq!(ra.unwrap(), rb.unwrap(), "{what}: block requests");
+    endings[5] += layered;
     endings
 }
 
@@ -263,7 +303,7 @@ fn add(a: &mut Endings, b: Endings) {
 
 /// Every packet source against `scene` through the cache `make` gives, at PoE 0, 2 and 40.
 fn all_sources(scene: &Arc<Scene>, make: &dyn Fn() -> Cache, frames: usize) -> [Endings; 3] {
-    let mut out = [[0; 5]; 3];
+    let mut out = [[0; 6]; 3];
     for (p, poe) in [0.0f64, 2.0, 40.0].into_iter().enumerate() {
         let (cache, between_frames) = make();
         let mut rng = Rng(17 + p as u64);
@@ -317,7 +357,7 @@ fn all_sources(scene: &Arc<Scene>, make: &dyn Fn() -> Cache, frames: usize) -> [
             between_frames();
         }
     }
-    eprintln!("endings (triangle, voxel, proxy, plane, miss) at PoE 0, 2, 40: {out:?}");
+    eprintln!("endings (triangle, voxel, proxy, plane, miss; layered) at PoE 0, 2, 40: {out:?}");
     out
 }
 
@@ -340,6 +380,8 @@ fn packets_give_the_single_ray_hits_with_the_blocking_cache() {
         "PoE 0 is full detail: {poe0:?}"
     );
     assert!(poe2[1] > 0 && poe40[1] > poe2[1], "{poe2:?} {poe40:?}");
+    // Pre-filtered voxels: some rays composite layers.
+    assert!(poe2[5] > 0 && poe40[5] > 0, "{poe2:?} {poe40:?}");
 }
 
 #[test]
@@ -355,13 +397,14 @@ fn packets_give_the_single_ray_hits_on_jittered_overlapping_surfaces() {
 #[test]
 fn packets_give_the_single_ray_hits_with_r_lod_planes() {
     let dir = tempfile::tempdir().unwrap();
-    let path = mandelbulb_with(dir.path(), 8_000, LodKinds::BOTH);
+    let path = mandelbulb_with(dir.path(), 8_000, LodKinds::BOTH.filtered());
     let scene = Scene::open(&path).unwrap().with_lod(LodKind::Rlod).unwrap();
     let scene = Arc::new(scene);
     let make = || blocking(&scene);
     let [poe0, poe2, poe40] = all_sources(&scene, &make, 1);
     assert_eq!(poe0[3], 0, "{poe0:?}");
     assert!(poe2[3] + poe40[3] > 0, "{poe2:?} {poe40:?}");
+    assert!(poe2[5] + poe40[5] > 0, "{poe2:?} {poe40:?}");
 }
 
 #[test]
@@ -405,17 +448,23 @@ fn a_render_gives_the_depth_of_the_single_ray_path() {
                 &cache,
                 (f64::from(poe) * frame.pixel_angle()) as f32,
             );
-            let mut memo = Memo::new(&scene);
+            let (mut memo, nearest) = (Memo::new(&scene), Memo::new(&scene));
             let mut k = 0;
             for y in 0..cam.height {
                 for x in 0..cam.width {
                     let ray = frame.ray(x, y);
-                    let hit = tracer.trace(&ray, &memo);
-                    if translucent && hit.as_ref().is_some_and(|h| h.is_translucent()) {
-                        // The renderer walks such a ray once more for what lies behind.
-                        tracer.trace_layers(&ray, f32::INFINITY, &memo);
-                    }
+                    let hit = tracer.trace(&ray, &nearest);
                     let t = hit.map_or(f32::INFINITY, |h| h.t);
+                    if translucent {
+                        // The renderer walks such a ray once, collecting every layer; the
+                        // nearest of them is the nearest surface.
+                        let l = tracer.trace_layers(&ray, f32::INFINITY, &memo);
+                        let first = l.translucent.first().or(l.end.as_ref());
+                        let first = first.map_or(f32::INFINITY, |h| h.t);
+                        assert_eq!(first.to_bits(), t.to_bits(), "pixel ({x}, {y})");
+                    } else {
+                        tracer.trace(&ray, &memo);
+                    }
                     assert_eq!(
                         img.depth[k].to_bits(),
                         t.to_bits(),
