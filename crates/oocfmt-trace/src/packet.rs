@@ -308,7 +308,10 @@ impl Tracer<'_> {
     ) -> [Option<Hit>; N] {
         let mut near = Nearest::new([f32::INFINITY; N], Ending);
         match self.walk_packet(rays, keys, memo, &mut near) {
-            Some(()) => std::array::from_fn(|i| near.best[i].hit(near.best_t[i])),
+            Some(()) => {
+                let mut ends = near.best.into_iter().zip(near.best_t);
+                std::array::from_fn(|_| ends.next().and_then(|(b, t)| b.hit(t)))
+            }
             None => {
                 let mut out = [const { None }; N];
                 for ((o, ray), &key) in out.iter_mut().zip(rays).zip(keys) {
@@ -338,10 +341,9 @@ impl Tracer<'_> {
         let layers: [Collected<'_>; N] = std::array::from_fn(|_| Collected::new());
         let mut near = Nearest::new(t_max, layers);
         if self.walk_packet(rays, keys, memo, &mut near).is_some() {
-            for (i, o) in out.iter_mut().enumerate() {
-                if let Some(l) = near.layers.get_mut(i) {
-                    l.finish(near.best_t[i], near.best[i], o);
-                }
+            let ends = near.best.into_iter().zip(near.best_t);
+            for ((l, o), (best, t)) in near.layers.iter_mut().zip(out.iter_mut()).zip(ends) {
+                l.finish(t, best, o);
             }
             return;
         }

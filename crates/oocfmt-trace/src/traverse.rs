@@ -102,13 +102,6 @@ pub struct Hit {
     pub part: Option<u32>,
 }
 
-impl Hit {
-    /// Whether what lies behind shows through this surface.
-    pub fn is_translucent(&self) -> bool {
-        is_translucent(self.coverage)
-    }
-}
-
 /// The last LOD node met on a ray's path: its voxel ends the ray where the data below is
 /// missing.
 #[derive(Clone, Copy)]
@@ -296,7 +289,7 @@ pub(crate) fn is_translucent(coverage: f32) -> bool {
 /// through).
 #[derive(Clone, Debug, Default)]
 pub struct Layers {
-    /// Surfaces that let what lies behind show ([`Hit::is_translucent`]), at most
+    /// Surfaces that let at least [`MIN_TRANSMITTANCE`] of what lies behind show, at most
     /// [`MAX_LAYERS`].
     pub translucent: ArrayVec<Hit, MAX_LAYERS>,
     /// The opaque surface behind them.
