@@ -1,5 +1,5 @@
 //! The `render_file` property: whatever a file holds, the tracer renders a frame of it in each
-//! cache mode, without panicking, without NaN in the depth image, within the node bound of spec
+//! cache mode (at full detail and at PoE 2, with shadow and ambient-occlusion rays), without panicking, without NaN in the depth image, within the node bound of spec
 //! §12 ("Following LOD links"), and in bounded time. It follows the tree the way only a deep
 //! verify otherwise does, so it covers what the format targets cannot: the tracer's decoders
 //! and the traversal over blocks that are each well formed but do not make a tree.
@@ -44,22 +44,32 @@ fn render_bytes(bytes: Vec<u8>) {
     let m = scene.metadata();
     let camera = Camera::framing(m.scene.bounds_min, m.scene.bounds_max, W, H);
     let blocking = BlockingCache::new(Arc::clone(&scene), BUDGET);
-    for (poe, shadows) in [(0.0, true), (2.0, false)] {
-        frame(&scene, &blocking, &camera, poe, shadows);
+    // Full detail with shadows; LOD with its translucent layers, alone and with a shadow ray
+    // and two ambient-occlusion rays from every layer.
+    for (poe, shadows, ao) in [(0.0, true, 0), (2.0, false, 0), (2.0, true, 2)] {
+        frame(&scene, &blocking, &camera, poe, (shadows, ao));
     }
     // The asynchronous cache: a cold frame on what is loaded, then one on everything asked for.
     let cache = AsyncCache::new(Arc::clone(&scene), BUDGET, 1);
     for _ in 0..2 {
-        frame(&scene, &cache, &camera, 0.0, false);
+        frame(&scene, &cache, &camera, 0.0, (false, 0));
         cache.wait_for_fetchers();
         cache.end_frame();
     }
 }
 
-fn frame(scene: &Scene, cache: &dyn BlockCache, camera: &Camera, poe: f32, shadows: bool) {
+/// One frame at `poe`, with shadow rays or not and `ao` ambient-occlusion rays per hit.
+fn frame(
+    scene: &Scene,
+    cache: &dyn BlockCache,
+    camera: &Camera,
+    poe: f32,
+    (shadows, ao): (bool, u32),
+) {
     let opts = RenderOptions {
         poe,
         shadows,
+        ao,
         ..RenderOptions::default()
     };
     // A camera or options the renderer refuses (a scene box of infinities) is an error, not a
