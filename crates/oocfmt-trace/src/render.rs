@@ -266,7 +266,6 @@ fn packet_rays(
 
 /// What a tile's primary rays met, pixel by pixel: the surface each ends on and, where LOD
 /// entries are translucent, the layers in front of it (`front[spans[k]]`, nearest first).
-#[derive(Default)]
 struct Primaries {
     ends: Vec<Option<Hit>>,
     front: Vec<Hit>,
@@ -295,44 +294,15 @@ impl Primaries {
     }
 }
 
-/// The primary hits of a tile's `rays` (row-major, `width` per row), traced in packets
-/// ([`packets`]). Each ray's wants are logged under its index in the tile, for the caller to
-/// release in pixel order.
-fn primary_hits(tracer: &Tracer<'_>, rays: &[Ray], width: usize, memo: &Memo) -> Primaries {
-    let height = rays.len() / width.max(1);
-    let mut hits: Vec<Option<Hit>> = (0..rays.len()).map(|_| None).collect();
-    packets(width, height, |pixels| match pixels {
-        Pixels::Packet(idx) => {
-            let Some(packet) = packet_rays(rays, idx) else {
-                return;
-            };
-            let out = tracer.trace_packet(&packet, &idx.map(|k| k as u32), memo);
-            for (k, hit) in idx.into_iter().zip(out) {
-                if let Some(h) = hits.get_mut(k) {
-                    *h = hit;
-                }
-            }
-        }
-        Pixels::Alone(k) => {
-            if let (Some(ray), Some(h)) = (rays.get(k), hits.get_mut(k)) {
-                memo.defer_wants(Some(k as u32));
-                *h = tracer.trace(ray, memo);
-                memo.defer_wants(None);
-            }
-        }
-    });
-    Primaries {
-        ends: hits,
-        ..Primaries::default()
-    }
-}
-
-/// [`primary_hits`] with LOD entries translucent: each ray's layers closer than its
-/// `limits` entry ([`Tracer::trace_packet_layers`]).
-fn primary_layers(
+/// What a tile's primary `rays` (row-major, `width` per row) meet, traced in packets
+/// ([`packets`]): with `limits` (each ray's farthest distance, infinity past its end) every
+/// translucent LOD entry in front of the surface each ends on ([`Tracer::trace_packet_layers`]),
+/// without, that surface alone ([`Tracer::trace_packet`]). Each ray's wants are logged under
+/// its index in the tile, for the caller to release in pixel order.
+fn primaries(
     tracer: &Tracer<'_>,
     rays: &[Ray],
-    limits: &[f32],
+    limits: Option<&[f32]>,
     width: usize,
     memo: &Memo,
 ) -> Primaries {
@@ -342,7 +312,7 @@ fn primary_layers(
         front: Vec::new(),
         spans: vec![(0, 0); rays.len()],
     };
-    let limit = |k: usize| limits.get(k).copied().unwrap_or(f32::INFINITY);
+    let limit = |k: usize, l: &[f32]| l.get(k).copied().unwrap_or(f32::INFINITY);
     let mut scratch: [Layers; PACKET_W * PACKET_H] = Default::default();
     packets(width, height, |pixels| match pixels {
         Pixels::Packet(idx) => {
@@ -350,17 +320,38 @@ fn primary_layers(
                 return;
             };
             let keys = idx.map(|k| k as u32);
-            tracer.trace_packet_layers(&packet, &keys, idx.map(limit), memo, &mut scratch);
-            for (k, l) in idx.into_iter().zip(&mut scratch) {
-                out.put(k, l);
+            match limits {
+                Some(l) => {
+                    let t_max = idx.map(|k| limit(k, l));
+                    tracer.trace_packet_layers(&packet, &keys, t_max, memo, &mut scratch);
+                    for (k, layers) in idx.into_iter().zip(&mut scratch) {
+                        out.put(k, layers);
+                    }
+                }
+                None => {
+                    let hits = tracer.trace_packet(&packet, &keys, memo);
+                    for (k, hit) in idx.into_iter().zip(hits) {
+                        if let Some(end) = out.ends.get_mut(k) {
+                            *end = hit;
+                        }
+                    }
+                }
             }
         }
         Pixels::Alone(k) => {
-            if let Some(ray) = rays.get(k) {
-                memo.defer_wants(Some(k as u32));
-                out.put(k, &mut tracer.trace_layers(ray, limit(k), memo));
-                memo.defer_wants(None);
+            let Some(ray) = rays.get(k) else {
+                return;
+            };
+            memo.defer_wants(Some(k as u32));
+            match limits {
+                Some(l) => out.put(k, &mut tracer.trace_layers(ray, limit(k, l), memo)),
+                None => {
+                    if let Some(end) = out.ends.get_mut(k) {
+                        *end = tracer.trace(ray, memo);
+                    }
+                }
             }
+            memo.defer_wants(None);
         }
     });
     out
@@ -523,7 +514,7 @@ impl<'a> FrameJob<'a> {
         (x0, y0, x1, y1)
     }
 
-    /// Traces and shades one tile: its centre rays first, in packets ([`primary_hits`]), then
+    /// Traces and shades one tile: its centre rays first, in packets ([`primaries`]), then
     /// each pixel in row-major order.
     fn tile(&self, tile: u32, memo: &mut Memo) -> TileOut {
         let (x0, y0, x1, y1) = self.tile_rect(tile);
@@ -560,12 +551,10 @@ impl<'a> FrameJob<'a> {
             }
         }
         let width = (x1 - x0) as usize;
-        let prim = if self.layered() {
-            let limits: Vec<f32> = clips.iter().flatten().map(|c| c.limit()).collect();
-            primary_layers(&self.tracer, &rays, &limits, width, memo)
-        } else {
-            primary_hits(&self.tracer, &rays, width, memo)
-        };
+        let limits: Option<Vec<f32>> = self
+            .layered()
+            .then(|| clips.iter().flatten().map(|c| c.limit()).collect());
+        let prim = primaries(&self.tracer, &rays, limits.as_deref(), width, memo);
         let pixels = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (y, x)));
         for (k, (y, x)) in pixels.enumerate() {
             // The primary ray's wants, in the order it would have made them traced alone:
