@@ -9,10 +9,10 @@ pixels), what perfect pre-filtering would give:
 - the truth averaged over grid-aligned p-pixel blocks, each block shown flat (what records of
   p pixels that are exact footprint means give, sampled once per pixel);
 
-and renders the real images (full detail at 1 ray per pixel, each --poe, translucent LOD
-entries (the default) and --opaque-lod) to set them beside the bounds, split into the pixels the model covers fully
-(interior) and those it covers partly (silhouettes), with the share of the squared error each
-holds. --crops X,Y,W,H writes error maps of that region (red too bright, blue too dark, 4x gain).
+and renders the real images (full detail at 1 ray per pixel; each --poe with translucent LOD
+entries, the default, and with --opaque-lod) to set them beside the bounds, split into the
+pixels the model covers fully (interior) and those it covers partly (silhouettes), with the
+share of the squared error each holds. --crops X,Y,W,H writes error maps of that region (red too bright, blue too dark, 4x gain).
 
     cargo build --release -p oocfmt-cli
     python3 -m venv target/lod-venv && target/lod-venv/bin/pip install numpy pillow

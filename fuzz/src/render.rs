@@ -1,6 +1,7 @@
-//! The `render_file` property: whatever a file holds, the tracer renders a frame of it in each
-//! cache mode (at full detail and at PoE 2, with shadow and ambient-occlusion rays), without panicking, without NaN in the depth image, within the node bound of spec
-//! §12 ("Following LOD links"), and in bounded time. It follows the tree the way only a deep
+//! The `render_file` property: whatever a file holds, the tracer renders frames of it in each
+//! cache mode (at full detail and at PoE 2, with shadow and ambient-occlusion rays) without
+//! panicking, without NaN in the depth image, within the node bound of spec §12 ("Following
+//! LOD links"), and in bounded time. It follows the tree the way only a deep
 //! verify otherwise does, so it covers what the format targets cannot: the tracer's decoders
 //! and the traversal over blocks that are each well formed but do not make a tree.
 //!
